@@ -1,0 +1,13 @@
+//! # mmt — the model-mediated teleoperation core
+//!
+//! What it is: the environment model and its sign convention ([`model`]), the back-solve and
+//! gates, the state-variable filters and the RLS estimator, the renderer, the simulated
+//! environment (ground truth), and — in later modules — the proxy contact detector, point clouds,
+//! scenes, trajectories, metrics and the two nodes (telerobot, operator) with the in-process
+//! experiment harness.
+//!
+//! What it is not: no I/O. It reads no clock, opens no socket, spawns no thread and touches no
+//! device; time and randomness are arguments, so a run with the same inputs gives the same bits.
+//! The thin `mmt` binary (`src/main.rs`) does the printing, file writing and timing.
+
+pub mod model;

@@ -1,0 +1,1 @@
+//! Back-solve θ → φ (numerics notes §2). Written next.

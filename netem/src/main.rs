@@ -1,0 +1,4 @@
+fn main() {
+    eprintln!("netem: not built yet");
+    std::process::exit(2);
+}
