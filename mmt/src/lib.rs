@@ -11,3 +11,4 @@
 //! The thin `mmt` binary (`src/main.rs`) does the printing, file writing and timing.
 
 pub mod model;
+pub mod trajectory;
