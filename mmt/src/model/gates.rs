@@ -1,1 +1,319 @@
-//! Gates a parameter set must pass before it is rendered (numerics notes §2.6). Written next.
+//! Gates a parameter set must pass before anything renders it (numerics notes §2.6, §4.5;
+//! `DESIGN.md` §5). A set that passed is a [`Gated`]: only [`gate`] and [`gate_physical`] make
+//! one, so the renderer cannot be handed an unchecked set.
+//!
+//! In order:
+//! 1. **finite**: every coefficient the structure has;
+//! 2. **eigenvalue-stable**: the poles of F/X are the roots of `e s² + f s + 1`, in the open left
+//!    half-plane iff `e > 0` and `f > 0` (Routh–Hurwitz) — the thesis's only gate;
+//! 3. **passive**: the impedance `F_op/V` is positive real iff the poles are stable, the residue at
+//!    0 is non-negative (`d ≥ 0`) and `Im(F_op/X)(iω) = ω P(ω²)/|D|² ≥ 0`, with
+//!    `P(Ω) = ae Ω² + (bf − a − ce) Ω + (c − fd)`: closed form `a ≥ 0`, `c − fd ≥ 0`,
+//!    `bf − a − ce ≥ −2√(ae (c − fd))`. It rejects stable but active sets such as
+//!    `k1 < 0 < k1 + k2`, which the eigenvalue gate lets through;
+//! 4. **back-solve**: the physical parameters exist, are non-negative, and the relative residual
+//!    of θ against the model manifold is below [`GateConfig::max_residual`].
+
+use super::backsolve::{
+    BackSolveConfig, BackSolveError, BackSolved, Confidence, Params, back_solve,
+};
+use super::{KelvinVoigt, Physical, Structure, Theta, col};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Thresholds of the gates.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GateConfig {
+    /// Largest relative RMS misfit of θ against the model manifold. Default 0.25 (the prototype's
+    /// value, feasibility notes): a set further off the manifold is not this model.
+    pub max_residual: f64,
+    /// Settings of the back-solve run inside the gate.
+    pub back_solve: BackSolveConfig,
+}
+
+impl Default for GateConfig {
+    fn default() -> Self {
+        GateConfig {
+            max_residual: 0.25,
+            back_solve: BackSolveConfig::default(),
+        }
+    }
+}
+
+/// A parameter set that passed every gate.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Gated {
+    structure: Structure,
+    solved: BackSolved,
+}
+
+impl Gated {
+    /// The model structure.
+    pub fn structure(&self) -> Structure {
+        self.structure
+    }
+    /// The physical parameters.
+    pub fn params(&self) -> Params {
+        self.solved.params
+    }
+    /// Relative misfit of θ against the model manifold.
+    pub fn residual(&self) -> f64 {
+        self.solved.residual
+    }
+    /// Confidence of the back-solve.
+    pub fn confidence(&self) -> Confidence {
+        self.solved.confidence
+    }
+    /// The sliding-mass parameters, if this is a sliding mass.
+    pub fn sliding_mass(&self) -> Option<Physical> {
+        match self.solved.params {
+            Params::SlidingMass(p) => Some(p),
+            _ => None,
+        }
+    }
+    /// The Kelvin–Voigt parameters, if this is a Kelvin–Voigt contact.
+    pub fn kelvin_voigt(&self) -> Option<KelvinVoigt> {
+        match self.solved.params {
+            Params::KelvinVoigt(p) => Some(p),
+            _ => None,
+        }
+    }
+}
+
+/// Which gate a set failed, and why.
+#[derive(Clone, Copy, Debug, PartialEq, Error, Serialize)]
+#[serde(tag = "gate", rename_all = "kebab-case")]
+pub enum GateRejection {
+    /// A coefficient or parameter is NaN or infinite.
+    #[error("{name} is not finite ({value})")]
+    NonFinite {
+        /// Coefficient or parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A pole of F/X is not in the open left half-plane.
+    #[error("not eigenvalue-stable: e = {e}, f = {f} (both must be > 0)")]
+    NotEigenStable {
+        /// `e = m/S`.
+        e: f64,
+        /// `f = (b1 + b2)/S`.
+        f: f64,
+    },
+    /// Stable but able to generate energy.
+    #[error("not passive: {condition}")]
+    NotPassive {
+        /// The positive-real condition that failed.
+        condition: &'static str,
+    },
+    /// A physical parameter is negative.
+    #[error("{name} = {value} is negative")]
+    NotPhysical {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// θ is too far off the model manifold.
+    #[error("back-solve residual {residual:.3} exceeds {max}")]
+    Residual {
+        /// The relative residual.
+        residual: f64,
+        /// The configured maximum.
+        max: f64,
+    },
+    /// The back-solve refused.
+    #[error("back-solve: {0}")]
+    BackSolve(BackSolveError),
+    /// Free space has no parameters to render.
+    #[error("free space has no model")]
+    Free,
+}
+
+/// Runs every gate on regression coefficients θ (from the estimator).
+pub fn gate(
+    structure: Structure,
+    theta: &Theta,
+    weights: Option<&[f64; col::COUNT]>,
+    config: &GateConfig,
+) -> Result<Gated, GateRejection> {
+    check_theta(structure, theta, false)?;
+    let solved = back_solve(structure, theta, weights, &config.back_solve)
+        .map_err(GateRejection::BackSolve)?;
+    if !(solved.residual <= config.max_residual) {
+        return Err(GateRejection::Residual {
+            residual: solved.residual,
+            max: config.max_residual,
+        });
+    }
+    check_physical(&solved.params)?;
+    Ok(Gated { structure, solved })
+}
+
+/// Gates a physical parameter set given directly (scene ground truth, stress tests, priors):
+/// finite and non-negative, then the stability and passivity gates on its forward map. Unlike
+/// θ from data, a given set may be massless (`m = 0`: a first-order model, stable iff `f > 0`).
+/// Terms the structure leaves out are set to 0.
+pub fn gate_physical(structure: Structure, params: &Params) -> Result<Gated, GateRejection> {
+    check_physical(params)?;
+    let params = match (structure, params) {
+        (Structure::KelvinVoigt, Params::KelvinVoigt(kv)) => Params::KelvinVoigt(*kv),
+        (
+            Structure::SlidingMass {
+                ground_spring,
+                friction,
+            },
+            Params::SlidingMass(p),
+        ) => {
+            let mut p = *p;
+            if !ground_spring {
+                p.k_ground_n_per_m = 0.0;
+            }
+            if !friction {
+                p.coulomb_n = 0.0;
+            }
+            Params::SlidingMass(p)
+        }
+        (Structure::Free, _) => return Err(GateRejection::Free),
+        _ => {
+            return Err(GateRejection::NotPassive {
+                condition: "parameters match the structure",
+            });
+        }
+    };
+    let theta = match params {
+        Params::KelvinVoigt(kv) => {
+            let mut t = Theta::default();
+            t.0[col::C] = kv.b_ns_per_m;
+            t.0[col::D] = kv.k_n_per_m;
+            t
+        }
+        Params::SlidingMass(p) => p.theta().ok_or(GateRejection::NotEigenStable {
+            e: f64::INFINITY,
+            f: f64::INFINITY,
+        })?,
+        Params::Free => return Err(GateRejection::Free),
+    };
+    check_theta(structure, &theta, true)?;
+    Ok(Gated {
+        structure,
+        solved: BackSolved {
+            params,
+            residual: 0.0,
+            condition: 1.0,
+            confidence: Confidence::Identified,
+        },
+    })
+}
+
+/// Gates 1–3 on θ. `massless_ok` admits `e = 0` (a given first-order model).
+fn check_theta(
+    structure: Structure,
+    theta: &Theta,
+    massless_ok: bool,
+) -> Result<(), GateRejection> {
+    let t = &theta.0;
+    for i in structure.columns().indices() {
+        if !t[i].is_finite() {
+            return Err(GateRejection::NonFinite {
+                name: col::NAMES[i],
+                value: t[i],
+            });
+        }
+    }
+    let at = |i: usize| {
+        if structure.columns().contains(i) {
+            t[i]
+        } else {
+            0.0
+        }
+    };
+    match structure {
+        Structure::Free => Err(GateRejection::Free),
+        Structure::KelvinVoigt => {
+            // Z(s)/s = b + k/s is positive real iff b ≥ 0 and k ≥ 0.
+            if at(col::C) < 0.0 {
+                return Err(GateRejection::NotPassive {
+                    condition: "b ≥ 0"
+                });
+            }
+            if at(col::D) < 0.0 {
+                return Err(GateRejection::NotPassive {
+                    condition: "k ≥ 0"
+                });
+            }
+            Ok(())
+        }
+        Structure::SlidingMass { .. } => {
+            let (a, b, c, d, e, f) = (
+                at(col::A),
+                at(col::B),
+                at(col::C),
+                at(col::D),
+                at(col::E),
+                at(col::F),
+            );
+            let e_ok = e > 0.0 || (massless_ok && e == 0.0 && a == 0.0);
+            if !(e_ok && f > 0.0) {
+                return Err(GateRejection::NotEigenStable { e, f });
+            }
+            positive_real(a, b, c, d, e, f)?;
+            if at(col::G) < 0.0 || at(col::H) < 0.0 {
+                return Err(GateRejection::NotPassive {
+                    condition: "friction g, h ≥ 0",
+                });
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The closed-form positive-real test of numerics notes §2.6.
+fn positive_real(a: f64, b: f64, c: f64, d: f64, e: f64, f: f64) -> Result<(), GateRejection> {
+    let fail = |condition| Err(GateRejection::NotPassive { condition });
+    if a < 0.0 {
+        return fail("a ≥ 0");
+    }
+    if d < 0.0 {
+        return fail("d ≥ 0 (static stiffness)");
+    }
+    let p2 = a * e;
+    let p1 = b * f - a - c * e;
+    let p0 = c - f * d;
+    if p0 < 0.0 {
+        return fail("c − f·d ≥ 0");
+    }
+    // Tolerance: a few ulps of the terms that cancel in p1.
+    let scale = (b * f).abs() + a.abs() + (c * e).abs();
+    if p1 < -2.0 * (p2 * p0).sqrt() - 1e-12 * scale {
+        return fail("Im Z(iω) ≥ 0 for all ω");
+    }
+    Ok(())
+}
+
+fn check_physical(params: &Params) -> Result<(), GateRejection> {
+    let fields: &[(&'static str, f64)] = match params {
+        Params::Free => return Err(GateRejection::Free),
+        Params::KelvinVoigt(kv) => &[("k", kv.k_n_per_m), ("b", kv.b_ns_per_m)],
+        Params::SlidingMass(p) => &[
+            ("m", p.mass_kg),
+            ("k1", p.k_ground_n_per_m),
+            ("b1", p.b_ground_ns_per_m),
+            ("k2", p.k_contact_n_per_m),
+            ("b2", p.b_contact_ns_per_m),
+            ("Fc", p.coulomb_n),
+        ],
+    };
+    for &(name, value) in fields {
+        if !value.is_finite() {
+            return Err(GateRejection::NonFinite { name, value });
+        }
+        if value < 0.0 {
+            return Err(GateRejection::NotPhysical { name, value });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

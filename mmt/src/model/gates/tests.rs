@@ -1,0 +1,183 @@
+use super::*;
+use num_complex::Complex64;
+use proptest::prelude::*;
+
+const FULL: Structure = Structure::SlidingMass {
+    ground_spring: true,
+    friction: true,
+};
+
+fn typical() -> Physical {
+    Physical {
+        mass_kg: 0.5,
+        k_ground_n_per_m: 200.0,
+        b_ground_ns_per_m: 5.0,
+        k_contact_n_per_m: 2000.0,
+        b_contact_ns_per_m: 10.0,
+        coulomb_n: 0.3,
+    }
+}
+
+fn gate_theta(p: &Physical) -> Result<Gated, GateRejection> {
+    gate(FULL, &p.theta().unwrap(), None, &GateConfig::default())
+}
+
+/// Numeric oracle: stable poles and `Im(F_op/X)(iω) ≥ 0` on a dense log grid.
+fn numerically_passive(t: &[f64; 8]) -> bool {
+    let (a, b, c, d, e, f) = (t[0], t[1], t[2], t[3], t[4], t[5]);
+    if !(e > 0.0 && f > 0.0) || d < 0.0 {
+        return false;
+    }
+    (0..4000).all(|i| {
+        let w = 10f64.powf(-3.0 + 9.0 * i as f64 / 3999.0);
+        let s = Complex64::new(0.0, w);
+        let h = (s * s * s * a + s * s * b + s * c + d) / (s * s * e + s * f + 1.0);
+        h.im >= -1e-9 * h.norm()
+    })
+}
+
+#[test]
+fn physical_sets_pass_every_gate() {
+    for p in [typical(), Physical::THESIS_EXP1] {
+        let g = gate_theta(&p).unwrap();
+        let got = g.sliding_mass().unwrap();
+        assert!((got.k_contact_n_per_m - p.k_contact_n_per_m).abs() < 1e-6 * p.k_contact_n_per_m);
+    }
+}
+
+#[test]
+fn non_finite_coefficients_are_rejected() {
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        for i in 0..8 {
+            let mut t = typical().theta().unwrap();
+            t.0[i] = bad;
+            assert!(
+                matches!(
+                    gate(FULL, &t, None, &GateConfig::default()),
+                    Err(GateRejection::NonFinite { .. })
+                ),
+                "column {i} = {bad}"
+            );
+        }
+    }
+}
+
+#[test]
+fn negative_mass_or_damping_is_rejected() {
+    let mut p = typical();
+    p.mass_kg = -0.5;
+    assert!(matches!(
+        gate_theta(&p),
+        Err(GateRejection::NotEigenStable { .. })
+    ));
+    assert!(matches!(
+        gate_physical(FULL, &Params::SlidingMass(p)),
+        Err(GateRejection::NotPhysical { name: "m", .. })
+    ));
+    let mut p = typical();
+    p.b_ground_ns_per_m = -8.0; // b1 + b2 > 0 still: eigen-stable, but active
+    assert!(gate_theta(&p).is_err());
+    let mut p = typical();
+    p.b_contact_ns_per_m = -1.0;
+    assert!(matches!(
+        gate_physical(FULL, &Params::SlidingMass(p)),
+        Err(GateRejection::NotPhysical { name: "b2", .. })
+    ));
+}
+
+/// Numerics notes §10.3: k1 < 0 < k1 + k2 is eigenvalue-stable but active; only the
+/// passivity gate catches it.
+#[test]
+fn stable_but_active_set_fails_passivity() {
+    let mut p = typical();
+    p.k_ground_n_per_m = -150.0;
+    let t = p.theta().unwrap();
+    assert!(
+        t.0[col::E] > 0.0 && t.0[col::F] > 0.0,
+        "eigenvalue gate alone would pass"
+    );
+    assert!(matches!(
+        gate_theta(&p),
+        Err(GateRejection::NotPassive { .. })
+    ));
+    assert!(!numerically_passive(&t.0));
+}
+
+#[test]
+fn kelvin_voigt_gate() {
+    let ok = Params::KelvinVoigt(KelvinVoigt {
+        k_n_per_m: 1000.0,
+        b_ns_per_m: 2.0,
+    });
+    assert!(gate_physical(Structure::KelvinVoigt, &ok).is_ok());
+    let bad = Params::KelvinVoigt(KelvinVoigt {
+        k_n_per_m: 1000.0,
+        b_ns_per_m: -2.0,
+    });
+    assert!(gate_physical(Structure::KelvinVoigt, &bad).is_err());
+    let mut t = Theta::default();
+    t.0[col::D] = -5.0;
+    assert!(matches!(
+        gate(Structure::KelvinVoigt, &t, None, &GateConfig::default()),
+        Err(GateRejection::NotPassive { .. })
+    ));
+}
+
+#[test]
+fn massless_given_model_passes_but_massless_data_does_not() {
+    let mut p = typical();
+    p.mass_kg = 0.0;
+    assert!(gate_physical(FULL, &Params::SlidingMass(p)).is_ok());
+    assert!(matches!(
+        gate_theta(&p),
+        Err(GateRejection::NotEigenStable { .. } | GateRejection::BackSolve(_))
+    ));
+}
+
+#[test]
+fn residual_gate_rejects_off_manifold_theta() {
+    let mut t = typical().theta().unwrap();
+    t.0[col::B] *= 3.0; // off the manifold, still passive
+    let strict = GateConfig {
+        max_residual: 0.05,
+        ..GateConfig::default()
+    };
+    let r = gate(FULL, &t, None, &strict);
+    assert!(
+        matches!(r, Err(GateRejection::Residual { residual, .. }) if residual > 0.1),
+        "{r:?}"
+    );
+    // On the manifold the residual is rounding-level.
+    let exact = gate(FULL, &typical().theta().unwrap(), None, &strict).unwrap();
+    assert!(exact.residual() < 1e-9);
+}
+
+proptest! {
+    /// The closed-form positive-real test agrees with a dense numeric evaluation on random θ.
+    #[test]
+    fn closed_form_passivity_matches_numeric(
+        a in 0.0f64..1.0, b in -2.0f64..2.0, c in -1.0f64..3.0, d in -0.5f64..2.0,
+        e in 0.01f64..1.0, f in 0.01f64..2.0,
+    ) {
+        let t = [a, b, c, d, e, f, 0.0, 0.0];
+        let closed = positive_real(a, b, c, d, e, f).is_ok();
+        let numeric = numerically_passive(&t);
+        // Borderline cases (P's minimum within rounding of 0) may legitimately differ.
+        let p1 = b * f - a - c * e;
+        let margin = p1 + 2.0 * (a * e * (c - f * d)).abs().sqrt();
+        prop_assume!(margin.abs() > 1e-6 && (c - f * d).abs() > 1e-6 && d.abs() > 1e-6);
+        prop_assert_eq!(closed, numeric);
+    }
+
+    /// Every physical (non-negative) parameter set passes the stability and passivity gates.
+    #[test]
+    fn physical_sets_are_passive(
+        m in 1e-3f64..10.0, k1 in 0.0f64..1e4, b1 in 0.0f64..100.0,
+        k2 in 1.0f64..1e5, b2 in 1e-3f64..100.0, fc in 0.0f64..5.0,
+    ) {
+        let p = Physical { mass_kg: m, k_ground_n_per_m: k1, b_ground_ns_per_m: b1,
+            k_contact_n_per_m: k2, b_contact_ns_per_m: b2, coulomb_n: fc };
+        prop_assert!(gate_physical(FULL, &Params::SlidingMass(p)).is_ok());
+        prop_assert!(numerically_passive(&p.theta().unwrap().0));
+    }
+}
