@@ -1,5 +1,7 @@
 //! `mmt`: analysis commands over the MMT core. Thin: parse, call the library, print.
 
+mod cli;
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
@@ -14,9 +16,13 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Renderer frequency response against the exact |F/X|.
+    Transfer(cli::transfer::TransferArgs),
+}
 
 fn main() -> Result<()> {
-    let cli = Cli::parse();
-    match cli.command {}
+    match Cli::parse().command {
+        Command::Transfer(args) => cli::transfer::run(args),
+    }
 }

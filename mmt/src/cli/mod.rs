@@ -1,0 +1,9 @@
+//! The binary's command implementations: argument structs, printing, timing, files.
+
+pub mod transfer;
+
+/// Prints `value` as pretty JSON on stdout.
+pub fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
+    println!("{}", serde_json::to_string_pretty(value)?);
+    Ok(())
+}
