@@ -13,4 +13,5 @@
 pub mod analysis;
 pub mod model;
 pub mod render;
+pub mod report;
 pub mod trajectory;

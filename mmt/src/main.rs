@@ -19,10 +19,13 @@ struct Cli {
 enum Command {
     /// Renderer frequency response against the exact |F/X|.
     Transfer(cli::transfer::TransferArgs),
+    /// Error against run time per integrator and step size, on typical, stiff and extreme sets.
+    WorkPrecision(cli::work_precision::WorkPrecisionArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Transfer(args) => cli::transfer::run(args),
+        Command::WorkPrecision(args) => cli::work_precision::run(args),
     }
 }

@@ -2,3 +2,4 @@
 //! writes files and (where a figure is a time) passes in the clock.
 
 pub mod transfer;
+pub mod work_precision;

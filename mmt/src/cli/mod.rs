@@ -1,6 +1,7 @@
 //! The binary's command implementations: argument structs, printing, timing, files.
 
 pub mod transfer;
+pub mod work_precision;
 
 /// Prints `value` as pretty JSON on stdout.
 pub fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {

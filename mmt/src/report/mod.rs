@@ -1,0 +1,4 @@
+//! Reports people can look at: plots (SVG text and PNG bytes, built in memory; the binary writes
+//! the files).
+
+pub mod plot;
