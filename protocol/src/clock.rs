@@ -26,10 +26,10 @@ pub const OFFSET_WINDOW: usize = 16;
 /// The outcome of one Ping/Pong exchange.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct OffsetSample {
-    /// θ: the peer's clock minus ours [ns]; `peer_time ≈ our_time + offset_ns`. Rounded toward
+    /// θ: the peer's clock minus ours \[ns\]; `peer_time ≈ our_time + offset_ns`. Rounded toward
     /// zero to the nanosecond.
     pub offset_ns: i64,
-    /// δ: round-trip delay without the peer's processing time [ns], ≥ 0.
+    /// δ: round-trip delay without the peer's processing time \[ns\], ≥ 0.
     pub delay_ns: i64,
     /// When the answer arrived [ns, our clock].
     pub t4_ns: i64,
@@ -129,12 +129,12 @@ impl ClockOffsetEstimator {
             .copied()
     }
 
-    /// The current offset estimate θ [ns]: peer clock minus ours.
+    /// The current offset estimate θ \[ns\]: peer clock minus ours.
     pub fn offset_ns(&self) -> Option<i64> {
         self.best().map(|s| s.offset_ns)
     }
 
-    /// Maps a time on the peer's clock onto ours [ns], if there is an estimate.
+    /// Maps a time on the peer's clock onto ours \[ns\], if there is an estimate.
     pub fn peer_to_local_ns(&self, peer_time_ns: i64) -> Option<i64> {
         self.offset_ns().map(|o| peer_time_ns.saturating_sub(o))
     }

@@ -29,10 +29,10 @@ use crate::finite::{CheckFinite, NonFinite};
 /// The protocol version this build speaks; the first two bytes (little-endian) of every message.
 pub const PROTOCOL_VERSION: u16 = 1;
 
-/// Length of the version prefix [bytes].
+/// Length of the version prefix \[bytes\].
 pub const VERSION_PREFIX_BYTES: usize = 2;
 
-/// Upper bound on what decoding one message may allocate or read [bytes]: 64 MiB.
+/// Upper bound on what decoding one message may allocate or read \[bytes\]: 64 MiB.
 ///
 /// Bincode counts every decoded value and every announced container against it *before*
 /// allocating, so a garbage length prefix fails with [`DecodeError::TooLarge`] instead of
@@ -44,7 +44,7 @@ pub const MAX_BODY_BYTES: usize = 64 * 1024 * 1024;
 /// rest of the frame. Senders downsample larger clouds.
 pub const MAX_CLOUD_POINTS: usize = 4 * 1024 * 1024;
 
-/// Upper bound on an encoded datagram message [bytes], tested for the largest values of every
+/// Upper bound on an encoded datagram message \[bytes\], tested for the largest values of every
 /// field. QUIC guarantees 1162 bytes of datagram payload at the handshake (network notes §3.1);
 /// the margin is left for future fields.
 pub const MAX_DATAGRAM_BYTES: usize = 1100;
@@ -75,7 +75,7 @@ pub enum DecodeError {
         "message of {len} bytes is too short: expected at least the {VERSION_PREFIX_BYTES}-byte protocol version"
     )]
     TooShort {
-        /// Length received [bytes].
+        /// Length received \[bytes\].
         len: usize,
     },
     /// The peer speaks another protocol version; nothing after the prefix was read.
@@ -119,9 +119,9 @@ pub enum DecodeError {
     TrailingBytes {
         /// Which message type was decoded.
         direction: Direction,
-        /// Length of the message, prefix included [bytes].
+        /// Length of the message, prefix included \[bytes\].
         message_len: usize,
-        /// Bytes left over [bytes].
+        /// Bytes left over \[bytes\].
         trailing: usize,
     },
     /// A float field held NaN or ±∞.
@@ -146,7 +146,6 @@ pub(crate) fn encode_into<M: Serialize>(msg: &M, buf: &mut Vec<u8>) {
     // Every message type is plain data (structs, enums, options, arrays, strings, vectors with a
     // known length) and writing to a `Vec` cannot fail, so bincode has no error to report; the
     // proptests encode every variant with arbitrary values.
-    #[allow(clippy::expect_used)]
     written.expect("encoding a protocol message into a Vec cannot fail");
 }
 
@@ -179,6 +178,33 @@ where
         .map_err(|source| DecodeError::NonFinite { direction, source })?;
     Ok(msg)
 }
+
+/// Defines a direction module's public `encode_into`, `encode` and `decode` for its `Message`
+/// over [`encode_into`] and [`decode`].
+macro_rules! direction_codec {
+    ($direction:expr) => {
+        /// Encodes `msg` into `buf`: cleared first, capacity kept, so a reused buffer does not
+        /// allocate once it has grown to the largest message. Floats are not checked here (the
+        /// peer's decoder refuses non-finite ones): check them with [`Message::check_finite`]
+        /// where they are computed.
+        pub fn encode_into(msg: &Message, buf: &mut Vec<u8>) {
+            $crate::codec::encode_into(msg, buf);
+        }
+
+        /// Encodes `msg` into a new buffer.
+        pub fn encode(msg: &Message) -> Vec<u8> {
+            let mut buf = Vec::new();
+            encode_into(msg, &mut buf);
+            buf
+        }
+
+        /// Decodes exactly one message; see [`crate::codec`] for what is rejected.
+        pub fn decode(bytes: &[u8]) -> Result<Message, $crate::codec::DecodeError> {
+            $crate::codec::decode(bytes, $direction)
+        }
+    };
+}
+pub(crate) use direction_codec;
 
 /// The codec configuration: bincode's standard one with the allocation limit.
 fn config() -> Configuration<LittleEndian, Varint, Limit<MAX_BODY_BYTES>> {

@@ -25,7 +25,7 @@ pub struct Header {
     /// The newest `seq` the sender has accepted from its peer, or [`NO_ECHO`] (0) before the
     /// first.
     pub echo_seq: u64,
-    /// How long the sender held `echo_seq` before sending this datagram [ns], i.e. `t3 − t2` of
+    /// How long the sender held `echo_seq` before sending this datagram \[ns\], i.e. `t3 − t2` of
     /// the RTT. Saturates at `u32::MAX` (4.29 s); such a saturated hold gives no RTT sample.
     pub echo_hold_ns: u32,
 }

@@ -36,7 +36,7 @@ pub struct ParameterSet {
     /// Sample time of the newest data the set was estimated from [ns, telerobot clock].
     pub sample_time_ns: i64,
     /// Residual of the back-solve from regression coefficients to these terms, relative to the
-    /// coefficients' size [dimensionless]; 0 is an exact fit. Reported so the operator can gate
+    /// coefficients' size \[dimensionless\]; 0 is an exact fit. Reported so the operator can gate
     /// or weight a set itself.
     pub residual: f64,
     /// The terms, shaped by the structure.
@@ -48,24 +48,24 @@ pub struct ParameterSet {
 pub enum ModelTerms {
     /// [`ModelStructure::KelvinVoigt`].
     KelvinVoigt {
-        /// Contact stiffness `k` [N/m].
+        /// Contact stiffness `k` \[N/m\].
         k_n_per_m: f64,
-        /// Contact damping `b` [N·s/m].
+        /// Contact damping `b` \[N·s/m\].
         b_ns_per_m: f64,
     },
     /// [`ModelStructure::SlidingMass`].
     SlidingMass {
-        /// Object mass `m` [kg].
+        /// Object mass `m` \[kg\].
         mass_kg: f64,
-        /// Ground spring `k1` [N/m]; `None` when the structure has no ground spring.
+        /// Ground spring `k1` \[N/m\]; `None` when the structure has no ground spring.
         k_ground_n_per_m: Option<f64>,
-        /// Ground damper `b1` [N·s/m].
+        /// Ground damper `b1` \[N·s/m\].
         b_ground_ns_per_m: f64,
-        /// Contact spring `k2` [N/m].
+        /// Contact spring `k2` \[N/m\].
         k_contact_n_per_m: f64,
-        /// Contact damper `b2` [N·s/m].
+        /// Contact damper `b2` \[N·s/m\].
         b_contact_ns_per_m: f64,
-        /// Coulomb friction level `Fc` [N]; `None` when the structure has no friction.
+        /// Coulomb friction level `Fc` \[N\]; `None` when the structure has no friction.
         coulomb_n: Option<f64>,
     },
 }

@@ -8,11 +8,11 @@
 //! | `Bye` | reliable control stream, last message | once |
 //!
 //! Positions and velocities are in the telerobot's world frame [m, m/s] (the operator node maps
-//! device coordinates into it); times are on the operator's clock [ns].
+//! device coordinates into it); times are on the operator's clock \[ns\].
 
 use serde::{Deserialize, Serialize};
 
-use crate::codec::{self, DecodeError, Direction};
+use crate::codec::{self, Direction};
 use crate::finite::{self, CheckFinite, NonFinite};
 use crate::header::Header;
 
@@ -47,9 +47,9 @@ pub struct Command {
     /// `sample_time_ns` is when the device was read; the telerobot echoes it back in the
     /// `command_sample_time_ns` of what it computed from this command.
     pub header: Header,
-    /// Commanded tool position, world frame [m].
+    /// Commanded tool position, world frame \[m\].
     pub position_m: [f64; 3],
-    /// Commanded tool velocity, world frame [m/s].
+    /// Commanded tool velocity, world frame \[m/s\].
     pub velocity_m_per_s: [f64; 3],
 }
 
@@ -99,19 +99,4 @@ impl CheckFinite for Message {
     }
 }
 
-/// Encodes `msg` into `buf` (cleared first, capacity kept: no allocation once `buf` has grown).
-pub fn encode_into(msg: &Message, buf: &mut Vec<u8>) {
-    codec::encode_into(msg, buf);
-}
-
-/// Encodes `msg` into a new buffer.
-pub fn encode(msg: &Message) -> Vec<u8> {
-    let mut buf = Vec::new();
-    encode_into(msg, &mut buf);
-    buf
-}
-
-/// Decodes one message; see [`crate::codec`] for what is rejected.
-pub fn decode(bytes: &[u8]) -> Result<Message, DecodeError> {
-    codec::decode(bytes, Direction::OperatorToTelerobot)
-}
+codec::direction_codec!(Direction::OperatorToTelerobot);

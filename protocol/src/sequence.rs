@@ -15,7 +15,7 @@ pub enum Arrival {
     /// Newer than all accepted so far: use it. `skipped` sequence numbers between the previous
     /// newest and this one have not arrived (lost, or still on their way).
     Newer {
-        /// Sequence numbers jumped over [count].
+        /// Sequence numbers jumped over \[count\].
         skipped: u64,
     },
     /// Older than the newest accepted and not seen before: reordered, dropped.

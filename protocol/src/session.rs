@@ -174,7 +174,7 @@ impl RttEstimator {
     }
 
     /// Takes the echo fields of a datagram that arrived at `t4_ns` (our clock); returns the new
-    /// RTT sample [ns], if it gave one.
+    /// RTT sample \[ns\], if it gave one.
     pub fn on_echo(&mut self, echo_seq: u64, echo_hold_ns: u32, t4_ns: i64) -> Option<i64> {
         if echo_seq <= self.newest_echo {
             return None;
@@ -215,22 +215,22 @@ impl RttEstimator {
         self.variation_ns = narrow(var);
     }
 
-    /// The newest sample [ns].
+    /// The newest sample \[ns\].
     pub fn latest_ns(&self) -> Option<i64> {
         self.latest_ns
     }
 
-    /// The smallest sample so far [ns]: the path's RTT without queueing.
+    /// The smallest sample so far \[ns\]: the path's RTT without queueing.
     pub fn min_ns(&self) -> Option<i64> {
         self.min_ns
     }
 
-    /// Smoothed RTT (RFC 6298 `srtt`) [ns].
+    /// Smoothed RTT (RFC 6298 `srtt`) \[ns\].
     pub fn smoothed_ns(&self) -> Option<i64> {
         self.smoothed_ns
     }
 
-    /// RTT variation (RFC 6298 `rttvar`) [ns]; 0 before the first sample.
+    /// RTT variation (RFC 6298 `rttvar`) \[ns\]; 0 before the first sample.
     pub fn variation_ns(&self) -> i64 {
         self.variation_ns
     }

@@ -11,13 +11,13 @@
 //! | [`Pong`] | datagram | one per `Ping` |
 //!
 //! Vectors are in the telerobot's world frame unless a doc says otherwise; times are on the
-//! telerobot's clock [ns] except `command_sample_time_ns`, which repeats the operator's
+//! telerobot's clock \[ns\] except `command_sample_time_ns`, which repeats the operator's
 //! `Command.header.sample_time_ns` (operator clock) so the operator can line results up with its
 //! own input history without knowing the clock offset.
 
 use serde::{Deserialize, Serialize};
 
-use crate::codec::{self, DecodeError, Direction};
+use crate::codec::{self, Direction};
 use crate::finite::{self, CheckFinite, NonFinite};
 use crate::header::Header;
 pub use crate::model::{ModelStructure, ModelTerms, ParameterSet};
@@ -61,9 +61,9 @@ pub struct SceneSummary {
     pub normal: ModelStructure,
     /// Model structure along the two tangents (both share it).
     pub tangential: ModelStructure,
-    /// Rate of the telerobot's control loop and of its datagrams [Hz] (thesis: 1000).
+    /// Rate of the telerobot's control loop and of its datagrams \[Hz\] (thesis: 1000).
     pub control_rate_hz: f64,
-    /// Rate of point-cloud frames [Hz]; `None` when the scene has no cloud or the operator did not
+    /// Rate of point-cloud frames \[Hz\]; `None` when the scene has no cloud or the operator did not
     /// ask for one.
     pub cloud_rate_hz: Option<f64>,
     /// Human-readable names of the model terms the scene leaves out (e.g. `ground spring k1`).
@@ -128,11 +128,11 @@ pub enum ContactState {
 /// [unit vectors, world frame].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceFrame {
-    /// Surface normal, pointing out of the object [unit].
+    /// Surface normal, pointing out of the object \[unit\].
     pub normal: [f64; 3],
-    /// First tangent [unit].
+    /// First tangent \[unit\].
     pub tangent1: [f64; 3],
-    /// Second tangent, `normal × tangent1` [unit].
+    /// Second tangent, `normal × tangent1` \[unit\].
     pub tangent2: [f64; 3],
 }
 
@@ -145,24 +145,24 @@ pub struct Contact {
     pub command_sample_time_ns: i64,
     /// Free, contact or entrenched.
     pub state: ContactState,
-    /// Position of the proxy (the tool's constrained stand-in) [m].
+    /// Position of the proxy (the tool's constrained stand-in) \[m\].
     pub proxy_position_m: [f64; 3],
-    /// Contact normal [unit]; `None` when free.
+    /// Contact normal \[unit\]; `None` when free.
     pub normal: Option<[f64; 3]>,
     /// Surface frame the parameters are identified in; `None` when free.
     pub frame: Option<SurfaceFrame>,
-    /// Closest surface point, the rest position of the normal axis [m]; `None` when free.
+    /// Closest surface point, the rest position of the normal axis \[m\]; `None` when free.
     pub surface_point_m: Option<[f64; 3]>,
-    /// Depth of the tool below the surface along the normal [m]; `None` when free.
+    /// Depth of the tool below the surface along the normal \[m\]; `None` when free.
     pub penetration_m: Option<f64>,
 }
 
 /// Mass state of one tangential axis of the sliding-mass model.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AxisState {
-    /// Mass position `x_m` along the tangent, relative to the contact onset point [m].
+    /// Mass position `x_m` along the tangent, relative to the contact onset point \[m\].
     pub mass_position_m: f64,
-    /// Mass velocity `ẋ_m` along the tangent [m/s].
+    /// Mass velocity `ẋ_m` along the tangent \[m/s\].
     pub mass_velocity_m_per_s: f64,
 }
 
@@ -190,12 +190,12 @@ pub struct Measurement {
     pub header: Header,
     /// Sample time of the operator command being executed [ns, operator clock].
     pub command_sample_time_ns: i64,
-    /// Measured tool position [m].
+    /// Measured tool position \[m\].
     pub position_m: [f64; 3],
-    /// Measured tool velocity [m/s].
+    /// Measured tool velocity \[m/s\].
     pub velocity_m_per_s: [f64; 3],
     /// Force the environment exerts on the tool (`F = −F_op`, the sign convention of
-    /// `mmt::model`) [N].
+    /// `mmt::model`) \[N\].
     pub force_on_tool_n: [f64; 3],
     /// Whether the robot was in contact.
     pub in_contact: bool,
@@ -208,11 +208,11 @@ pub struct CloudFrame {
     pub frame_id: u64,
     /// When the sensor captured the frame [ns, telerobot clock].
     pub timestamp_ns: i64,
-    /// Sensor position [m].
+    /// Sensor position \[m\].
     pub sensor_position_m: [f64; 3],
     /// Sensor orientation, unit quaternion `[x, y, z, w]`.
     pub sensor_orientation_xyzw: [f64; 4],
-    /// Points in the world frame [m], single precision (≈ 0.1 µm at 1 m); at most
+    /// Points in the world frame \[m\], single precision (≈ 0.1 µm at 1 m); at most
     /// [`crate::MAX_CLOUD_POINTS`].
     pub points: Vec<[f32; 3]>,
 }
@@ -326,19 +326,4 @@ fn check_cloud(c: &CloudFrame) -> Result<(), NonFinite> {
     finite::points("points", &c.points)
 }
 
-/// Encodes `msg` into `buf` (cleared first, capacity kept: no allocation once `buf` has grown).
-pub fn encode_into(msg: &Message, buf: &mut Vec<u8>) {
-    codec::encode_into(msg, buf);
-}
-
-/// Encodes `msg` into a new buffer.
-pub fn encode(msg: &Message) -> Vec<u8> {
-    let mut buf = Vec::new();
-    encode_into(msg, &mut buf);
-    buf
-}
-
-/// Decodes one message; see [`crate::codec`] for what is rejected.
-pub fn decode(bytes: &[u8]) -> Result<Message, DecodeError> {
-    codec::decode(bytes, Direction::TelerobotToOperator)
-}
+codec::direction_codec!(Direction::TelerobotToOperator);
