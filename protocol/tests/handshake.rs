@@ -1,0 +1,108 @@
+//! The version handshake, end to end through the codec.
+
+mod common;
+
+use protocol::PROTOCOL_VERSION;
+use protocol::handshake::{
+    HandshakeError, accept_hello, accept_welcome, check_hello, check_welcome,
+};
+use protocol::operator_to_telerobot::{self as o2t, Hello};
+use protocol::telerobot_to_operator::{self as t2o, Refusal, Refused, Welcome};
+
+/// The sample `Hello` of `common`, speaking `version`.
+fn hello(version: u16) -> Hello {
+    match &common::operator_samples()[0] {
+        o2t::Message::Hello(h) => Hello {
+            version,
+            ..h.clone()
+        },
+        other => panic!("sample 0 is a {}", other.kind()),
+    }
+}
+
+/// The sample `Welcome` of `common`, speaking `version`.
+fn welcome(version: u16) -> Welcome {
+    match &common::telerobot_samples()[0] {
+        t2o::Message::Welcome(w) => Welcome {
+            version,
+            ..w.clone()
+        },
+        other => panic!("sample 0 is a {}", other.kind()),
+    }
+}
+
+/// Bytes as a build speaking `version` would send them: the body is the same in this test.
+fn with_prefix(version: u16, mut bytes: Vec<u8>) -> Vec<u8> {
+    bytes[..2].copy_from_slice(&version.to_le_bytes());
+    bytes
+}
+
+#[test]
+fn matching_versions_open_the_session() {
+    assert_eq!(check_hello(&hello(PROTOCOL_VERSION)), Ok(()));
+    let bytes = o2t::encode(&o2t::Message::Hello(hello(PROTOCOL_VERSION)));
+    assert_eq!(accept_hello(&bytes), Ok(hello(PROTOCOL_VERSION)));
+    let bytes = t2o::encode(&t2o::Message::Welcome(welcome(PROTOCOL_VERSION)));
+    assert_eq!(accept_welcome(&bytes), Ok(welcome(PROTOCOL_VERSION)));
+}
+
+#[test]
+fn a_mismatched_hello_is_refused_naming_both_versions() {
+    let refusal = check_hello(&hello(2)).unwrap_err();
+    assert_eq!(
+        refusal.to_string(),
+        "protocol version mismatch: telerobot speaks 1, operator speaks 2"
+    );
+    // A version-2 build also puts 2 in the prefix: refused before the body is read.
+    let bytes = with_prefix(2, o2t::encode(&o2t::Message::Hello(hello(2))));
+    assert_eq!(accept_hello(&bytes), Err(refusal));
+}
+
+#[test]
+fn the_operator_names_both_versions_too() {
+    let e = check_welcome(&welcome(3)).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "protocol version mismatch: operator speaks 1, telerobot speaks 3"
+    );
+    let refused = t2o::Message::Refused(Refused {
+        reason: Refusal::VersionMismatch { ours: 3, theirs: 1 },
+    });
+    let bytes = with_prefix(3, t2o::encode(&refused));
+    assert_eq!(accept_welcome(&bytes), Err(e));
+}
+
+#[test]
+fn refusals_and_wrong_first_messages_are_reported() {
+    let busy = Refusal::Busy {
+        controlling_operator: "bob".into(),
+    };
+    let bytes = t2o::encode(&t2o::Message::Refused(Refused {
+        reason: busy.clone(),
+    }));
+    let e = accept_welcome(&bytes).unwrap_err();
+    assert_eq!(e, HandshakeError::Refused(busy));
+    assert_eq!(
+        e.to_string(),
+        "the telerobot refused the session: telerobot is busy: bob is in control"
+    );
+    let bytes = o2t::encode(&o2t::Message::Bye);
+    assert_eq!(
+        accept_hello(&bytes).unwrap_err().to_string(),
+        "refused: expected Hello as the first message, got Bye"
+    );
+    assert!(matches!(
+        accept_hello(&[1]),
+        Err(Refusal::Other(s)) if s.contains("too short")
+    ));
+}
+
+#[test]
+fn a_scene_without_a_positive_rate_is_rejected() {
+    let mut w = welcome(PROTOCOL_VERSION);
+    w.scene.cloud_rate_hz = Some(0.0);
+    assert_eq!(
+        check_welcome(&w).unwrap_err().to_string(),
+        "invalid scene summary: cloud_rate_hz = 0, expected a positive rate in Hz"
+    );
+}
