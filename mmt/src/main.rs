@@ -4,7 +4,10 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "mmt", about = "Model-mediated teleoperation: analysis commands")]
+#[command(
+    name = "mmt",
+    about = "Model-mediated teleoperation: analysis commands"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -13,6 +16,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {}
 
+// `Command` has no variant yet, so everything after parsing is unreachable; drop this allow with
+// the first subcommand.
+#[allow(unreachable_code, unused_variables)]
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {}

@@ -218,7 +218,10 @@ mod tests {
             for j in 0..2 {
                 let scale = want.row(i).amax();
                 // ωt = 44 rad: both sides carry ~ωt·ε of rounding.
-                assert!((e[(i, j)] - want[(i, j)]).abs() < 2e-11 * scale, "({i},{j})");
+                assert!(
+                    (e[(i, j)] - want[(i, j)]).abs() < 2e-11 * scale,
+                    "({i},{j})"
+                );
             }
         }
     }

@@ -38,7 +38,9 @@ pub enum FilterError {
         order: usize,
     },
     /// Cut-off not finite, not positive or too close to the sample rate.
-    #[error("filter cut-off {cutoff_hz} Hz out of range: allowed (0, {max_hz}] Hz (a tenth of the sample rate)")]
+    #[error(
+        "filter cut-off {cutoff_hz} Hz out of range: allowed (0, {max_hz}] Hz (a tenth of the sample rate)"
+    )]
     Cutoff {
         /// The cut-off given [Hz].
         cutoff_hz: f64,

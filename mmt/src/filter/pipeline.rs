@@ -66,7 +66,9 @@ fn rel_error(got: &[f64; col::COUNT], truth: &Physical, columns: Columns) -> f64
 
 fn svf_fit(object: &Physical, excitation: &Multisine, columns: Columns) -> f64 {
     let mut filt = RegressorFilter::new(RegressorConfig::default()).unwrap();
-    let theta = fit(object, excitation, columns, 30.0, |x, v, f| filt.step(x, v, f));
+    let theta = fit(object, excitation, columns, 30.0, |x, v, f| {
+        filt.step(x, v, f)
+    });
     rel_error(&theta, object, columns)
 }
 
@@ -128,5 +130,8 @@ fn inconsistent_cascade_fails() {
     });
     let err = rel_error(&theta, &object, columns);
     eprintln!("cascaded per-derivative filtering: max relative θ error {err:.2e}");
-    assert!(err > 0.1, "the inconsistent pipeline unexpectedly fits: {err}");
+    assert!(
+        err > 0.1,
+        "the inconsistent pipeline unexpectedly fits: {err}"
+    );
 }

@@ -145,8 +145,8 @@ impl Discretisation {
         let mut g_now = [0.0; MAX_ORDER];
         let mut unscale = [0.0; MAX_ORDER];
         for i in 0..n {
-            for j in 0..n {
-                phi[i][j] = d.phi[(i, j)];
+            for (j, p) in phi[i].iter_mut().enumerate().take(n) {
+                *p = d.phi[(i, j)];
             }
             g_now[i] = d.gamma_ramp[(i, 0)];
             g_prev[i] = d.gamma_hold[(i, 0)] - d.gamma_ramp[(i, 0)];
@@ -291,10 +291,25 @@ mod tests {
 
     #[test]
     fn butterworth_coefficients() {
-        let want6 = [1.0, 3.863_703_305, 7.464_101_615, 9.141_620_173, 7.464_101_615, 3.863_703_305, 1.0];
+        let want6 = [
+            1.0,
+            3.863_703_305,
+            7.464_101_615,
+            9.141_620_173,
+            7.464_101_615,
+            3.863_703_305,
+            1.0,
+        ];
         let got = butterworth_polynomial(6);
         assert!(max_abs_rel(&got[..7], &want6) < 1e-9);
-        let want5 = [1.0, 3.236_067_977, 5.236_067_977, 5.236_067_977, 3.236_067_977, 1.0];
+        let want5 = [
+            1.0,
+            3.236_067_977,
+            5.236_067_977,
+            5.236_067_977,
+            3.236_067_977,
+            1.0,
+        ];
         assert!(max_abs_rel(&butterworth_polynomial(5)[..6], &want5) < 1e-9);
         // |B_n(iΩ)|² = 1 + Ω^{2n} for every order.
         for n in MIN_ORDER..=MAX_ORDER {
@@ -323,10 +338,7 @@ mod tests {
                 }
             }
         }
-        states
-            .iter()
-            .map(|s| fit_phasor(s, w, h, settle))
-            .collect()
+        states.iter().map(|s| fit_phasor(s, w, h, settle)).collect()
     }
 
     /// Each state `k` against the exact `(iω)^k / Λ(iω)`: amplitude and phase within 1e-3
@@ -399,7 +411,10 @@ mod tests {
         svf.step(-2.5);
         for k in 0..cfg.order {
             let (a, b) = (svf.derivative(k).unwrap(), before.derivative(k).unwrap());
-            assert!((a - b).abs() < 1e-13 * 2.5 * cfg.cutoff_rad_s().powi(k as i32), "state {k}");
+            assert!(
+                (a - b).abs() < 1e-13 * 2.5 * cfg.cutoff_rad_s().powi(k as i32),
+                "state {k}"
+            );
         }
     }
 
@@ -418,11 +433,18 @@ mod tests {
         let scaled = cond(&phi);
         assert!(scaled < 5.0, "cond Φ̃ = {scaled}");
         let s = DMatrix::from_fn(cfg.order, cfg.order, |i, j| {
-            if i == j { cfg.cutoff_rad_s().powi(i as i32) } else { 0.0 }
+            if i == j {
+                cfg.cutoff_rad_s().powi(i as i32)
+            } else {
+                0.0
+            }
         });
         let s_inv = s.clone().try_inverse().unwrap();
         let plain = &s * &phi * &s_inv;
-        eprintln!("cond Φ̃ (time-scaled) = {scaled:.2}, cond Φ (plain) = {:.1e}", cond(&plain));
+        eprintln!(
+            "cond Φ̃ (time-scaled) = {scaled:.2}, cond Φ (plain) = {:.1e}",
+            cond(&plain)
+        );
         assert!(cond(&plain) > 1e12, "cond Φ = {:e}", cond(&plain));
         // And the scaled input vector is O(1) too.
         assert!((0..cfg.order).all(|i| d.g_now[i].abs() < 1.0 && d.g_prev[i].abs() < 1.0));
@@ -432,19 +454,46 @@ mod tests {
     fn invalid_configs_are_named() {
         let bad = |c: SvfConfig| Svf::new(c).unwrap_err();
         let base = SvfConfig::default();
-        assert_eq!(bad(SvfConfig { order: 3, ..base }), FilterError::Order { order: 3 });
-        assert_eq!(bad(SvfConfig { order: 9, ..base }), FilterError::Order { order: 9 });
-        assert!(matches!(bad(SvfConfig { cutoff_hz: 0.0, ..base }), FilterError::Cutoff { .. }));
-        assert!(matches!(bad(SvfConfig { cutoff_hz: 150.0, ..base }), FilterError::Cutoff { .. }));
+        assert_eq!(
+            bad(SvfConfig { order: 3, ..base }),
+            FilterError::Order { order: 3 }
+        );
+        assert_eq!(
+            bad(SvfConfig { order: 9, ..base }),
+            FilterError::Order { order: 9 }
+        );
         assert!(matches!(
-            bad(SvfConfig { cutoff_hz: f64::NAN, ..base }),
+            bad(SvfConfig {
+                cutoff_hz: 0.0,
+                ..base
+            }),
             FilterError::Cutoff { .. }
         ));
         assert!(matches!(
-            bad(SvfConfig { sample_period_s: -1e-3, ..base }),
+            bad(SvfConfig {
+                cutoff_hz: 150.0,
+                ..base
+            }),
+            FilterError::Cutoff { .. }
+        ));
+        assert!(matches!(
+            bad(SvfConfig {
+                cutoff_hz: f64::NAN,
+                ..base
+            }),
+            FilterError::Cutoff { .. }
+        ));
+        assert!(matches!(
+            bad(SvfConfig {
+                sample_period_s: -1e-3,
+                ..base
+            }),
             FilterError::SamplePeriod { .. }
         ));
         let msg = bad(SvfConfig { order: 3, ..base }).to_string();
-        assert!(msg.contains("order") && msg.contains('3') && msg.contains("4..=8"), "{msg}");
+        assert!(
+            msg.contains("order") && msg.contains('3') && msg.contains("4..=8"),
+            "{msg}"
+        );
     }
 }
