@@ -12,6 +12,7 @@
 
 pub mod filter;
 pub mod model;
+pub mod rls;
 pub mod trajectory;
 
 #[cfg(test)]
