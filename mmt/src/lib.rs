@@ -13,6 +13,7 @@
 pub mod filter;
 pub mod model;
 pub mod rls;
+pub mod sim;
 pub mod trajectory;
 
 #[cfg(test)]
