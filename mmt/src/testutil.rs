@@ -5,6 +5,26 @@ use num_complex::Complex64;
 
 use crate::model::{Columns, Physical, col};
 
+/// The numerics notes' "typical" object (§2.4, §6.2), without friction.
+pub fn typical() -> Physical {
+    Physical {
+        mass_kg: 0.5,
+        k_ground_n_per_m: 200.0,
+        b_ground_ns_per_m: 5.0,
+        k_contact_n_per_m: 2000.0,
+        b_contact_ns_per_m: 10.0,
+        coulomb_n: 0.0,
+    }
+}
+
+/// The exp-1 object without friction.
+pub fn exp1_frictionless() -> Physical {
+    Physical {
+        coulomb_n: 0.0,
+        ..Physical::THESIS_EXP1
+    }
+}
+
 /// Max over `i` of `|a_i − b_i| / |b_i|` (absolute where `b_i = 0`).
 pub fn max_abs_rel(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -27,6 +47,22 @@ pub fn fit_phasor(samples: &[f64], w: f64, h: f64, k0: usize) -> Complex64 {
     }
     let n = samples.len() as f64;
     Complex64::new(2.0 * a / n, -2.0 * b / n)
+}
+
+/// Worst relative error over a set of complex (phasor) comparisons.
+#[derive(Debug, Default)]
+pub struct PhasorCheck {
+    /// Largest `|got − want| / |want|` so far.
+    pub worst: f64,
+}
+
+impl PhasorCheck {
+    /// Records `|got − want| / |want|` and asserts it is below `tol`.
+    pub fn check(&mut self, got: Complex64, want: Complex64, tol: f64, what: &str) {
+        let rel = (got - want).norm() / want.norm();
+        self.worst = self.worst.max(rel);
+        assert!(rel < tol, "{what}: relative error {rel:e}");
+    }
 }
 
 /// A sum of sines `x(t) = Σ A_k sin(ω_k t + φ_k)` and the object's exact steady-state force on

@@ -4,29 +4,11 @@
 
 use super::*;
 use crate::model::{Columns, Physical, Structure};
-use crate::testutil::{Multisine, batch_ls, max_abs_rel};
+use crate::testutil::{Multisine, batch_ls, exp1_frictionless, max_abs_rel, typical};
 
 const H: f64 = 1e-3;
 /// Filter start-up transient left out of the fit [s].
 const SETTLE_S: f64 = 3.0;
-
-fn typical() -> Physical {
-    Physical {
-        mass_kg: 0.5,
-        k_ground_n_per_m: 200.0,
-        b_ground_ns_per_m: 5.0,
-        k_contact_n_per_m: 2000.0,
-        b_contact_ns_per_m: 10.0,
-        coulomb_n: 0.0,
-    }
-}
-
-fn exp1_frictionless() -> Physical {
-    Physical {
-        coulomb_n: 0.0,
-        ..Physical::THESIS_EXP1
-    }
-}
 
 /// Runs `regress(x, v, F)` over `seconds` of the exact response and fits θ on the active columns.
 fn fit(

@@ -7,27 +7,9 @@ use rand_pcg::Pcg64;
 use super::*;
 use crate::filter::{Regression, RegressorConfig, RegressorFilter};
 use crate::model::{Physical, Structure};
-use crate::testutil::{Multisine, batch_ls, max_abs_rel};
+use crate::testutil::{Multisine, batch_ls, exp1_frictionless, max_abs_rel, typical};
 
 const H: f64 = 1e-3;
-
-fn typical() -> Physical {
-    Physical {
-        mass_kg: 0.5,
-        k_ground_n_per_m: 200.0,
-        b_ground_ns_per_m: 5.0,
-        k_contact_n_per_m: 2000.0,
-        b_contact_ns_per_m: 10.0,
-        coulomb_n: 0.0,
-    }
-}
-
-fn exp1_frictionless() -> Physical {
-    Physical {
-        coulomb_n: 0.0,
-        ..Physical::THESIS_EXP1
-    }
-}
 
 fn no_friction(ground_spring: bool) -> Columns {
     Structure::SlidingMass {
@@ -151,6 +133,37 @@ fn equals_batch_least_squares_without_forgetting() {
         }
     }
     assert!(worst < 1e-6, "covariance {worst:e}");
+}
+
+/// The scales are an exact change of variables: with power-of-two scales and the same prior
+/// (`p0·I` scaled ≙ `diag(p0/s²)` raw), the U-D recursion gives the same bits, forgetting on.
+#[test]
+fn power_of_two_scaling_changes_no_bits() {
+    let cols = no_friction(true);
+    let data = regressions(
+        &typical(),
+        &Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005),
+        0.0,
+        10.0,
+        true,
+    );
+    let scales = ColumnScales::for_excitation(0.005, 10.0, 20.0).unwrap();
+    let cfg = |scales| RlsConfig {
+        max_mean_variance: 1e30, // keep the bound inactive: it compares traces, which scaling changes
+        ..config(cols, scales, 0.999, 1e3)
+    };
+    let mut scaled = Rls::new(cfg(scales)).unwrap();
+    let mut raw = Rls::new(cfg(ColumnScales::UNIT)).unwrap();
+    for (k, i) in cols.indices().enumerate() {
+        raw.d[k] = 1e3 / (scales.0[i] * scales.0[i]);
+    }
+    learn_all(&mut scaled, &data);
+    learn_all(&mut raw, &data);
+    assert_eq!(
+        scaled.theta().0.map(f64::to_bits),
+        raw.theta().0.map(f64::to_bits)
+    );
+    assert_eq!(scaled.prior_error().to_bits(), raw.prior_error().to_bits());
 }
 
 /// Raw regressors (cond 1e12) with λ = 0.999 for 30 s, then a single tone (rank-2 excitation of

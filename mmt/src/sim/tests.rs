@@ -5,7 +5,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
 use super::*;
-use crate::testutil::{Multisine, fit_phasor};
+use crate::testutil::{Multisine, PhasorCheck, exp1_frictionless, fit_phasor, typical};
 
 const H: f64 = 1e-3;
 
@@ -172,20 +172,8 @@ fn energy_not_increasing_while_stuck() {
 /// `F/X` within 1e-3 (0.3–20 Hz), for the exp-1 object and one with a ground spring.
 #[test]
 fn linear_response_matches_exact_transfer_function() {
-    let typical = Physical {
-        mass_kg: 0.5,
-        k_ground_n_per_m: 200.0,
-        b_ground_ns_per_m: 5.0,
-        k_contact_n_per_m: 2000.0,
-        b_contact_ns_per_m: 10.0,
-        coulomb_n: 0.0,
-    };
-    let exp1 = Physical {
-        coulomb_n: 0.0,
-        ..Physical::THESIS_EXP1
-    };
-    let mut worst: f64 = 0.0;
-    for object in [exp1, typical] {
+    let mut check = PhasorCheck::default();
+    for object in [exp1_frictionless(), typical()] {
         let cfg = SimConfig {
             object,
             static_friction_n: 0.0,
@@ -205,13 +193,18 @@ fn linear_response_matches_exact_transfer_function() {
             let f: Vec<f64> = out[settle..].iter().map(|o| o.truth.force_n).collect();
             // x = Im(amp e^{iωt}) = Re(−i·amp e^{iωt}); samples start at tick settle + 1.
             let got = fit_phasor(&f, w, H, settle + 1) / num_complex::Complex64::new(0.0, -amp);
-            let want = object.force_per_displacement(w);
-            let rel = (got - want).norm() / want.norm();
-            worst = worst.max(rel);
-            assert!(rel < 1e-3, "{f_hz} Hz: {rel:e}");
+            check.check(
+                got,
+                object.force_per_displacement(w),
+                1e-3,
+                &format!("{f_hz} Hz"),
+            );
         }
     }
-    eprintln!("sim F/X vs exact, 0.5–20 Hz, two objects: worst relative error {worst:.1e}");
+    eprintln!(
+        "sim F/X vs exact, 0.5–20 Hz, two objects: worst relative error {:.1e}",
+        check.worst
+    );
 }
 
 /// With friction and a multisine, 10 sub-steps per sample against 100: relative RMS difference of
