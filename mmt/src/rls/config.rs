@@ -45,8 +45,10 @@ pub struct RlsConfig {
     /// Forgetting factor `λ` ∈ (0, 1]. Default 0.999: a memory of `1/(1 − λ)` = 1000 updates
     /// (1 s at 1 kHz), inside the 0.995–0.9995 range of numerics notes §6.3.
     pub forgetting: f64,
-    /// Initial and reset covariance `p0` of each scaled coefficient [N²-ish, scaled units].
-    /// Default 1e3: `θ_s` is O(1–10) N with the exp-1 scales, so the prior is weak.
+    /// Initial and reset covariance `p0` of each scaled coefficient [1: `P_s` is the covariance
+    /// of `θ_s` per unit output-noise variance, since `ψ_s` is dimensionless]. Default 1e3: a
+    /// prior standard deviation of ≈ 32 N per newton of noise, against `θ_s` of O(1–10) N with
+    /// the exp-1 scales, so the prior is weak.
     pub initial_covariance: f64,
     /// Bound `p̄` on the mean variance `tr P_s / n` (scaled units). Default 1e3 (= `p0`): never
     /// less certain than just after a reset. Must be ≥ `p0`.

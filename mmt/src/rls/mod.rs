@@ -19,14 +19,13 @@
 //! Raw regressor columns span 1e-2 … 1e4 (condition of `Σψψᵀ` 1e12; 1e3 after scaling). The
 //! estimator works on `ψ_s = ψ ⊘ s`, `θ_s = θ ⊙ s`, so `ψ_sᵀθ_s = ψᵀθ`: an exact change of
 //! variables that does not change the least-squares solution. The U-D recursion itself is
-//! equivariant under diagonal scaling (with power-of-two scales and the prior carried over it
-//! gives the same bits while the covariance bound is inactive: test
-//! `power_of_two_scaling_changes_no_bits`); what the
-//! scaling makes meaningful are the isotropic prior `P0 = p0·I`, the covariance bound and the
-//! detector, which all compare directions of `θ_s`. The scales are therefore **fixed** from the
-//! configuration ([`ColumnScales::for_excitation`]), rounded to powers of two: a running RMS would
-//! move the meaning of `p0` and of the bound with the user's motion and make runs depend on
-//! history, and only the order of magnitude matters.
+//! equivariant under diagonal scaling: with power-of-two scales and the prior carried over it
+//! gives the same bits while the covariance bound is inactive (test
+//! `power_of_two_scaling_changes_no_bits`). What the scaling makes meaningful are the isotropic
+//! prior `P0 = p0·I` and the covariance bound, which compare directions of `θ_s`. The scales are
+//! therefore **fixed** from the configuration ([`ColumnScales::for_excitation`]) and rounded to
+//! powers of two: a running RMS would move the meaning of `p0` and of the bound with the user's
+//! motion and make runs depend on history, and only the order of magnitude matters.
 //!
 //! # Per update (`φ` = scaled active regressor, `n` = active columns)
 //!
@@ -84,7 +83,7 @@ pub enum Outcome {
     /// A non-finite regressor entry or output: counted, state untouched.
     RejectedNonFinite,
     /// The factor left the positive-definite set (or overflowed): θ̂ kept from before the
-    /// sample, covariance reset to `p0`, counted.
+    /// sample, covariance reset to `p0`, detector restarted, counted.
     CovarianceReset,
 }
 
