@@ -197,7 +197,8 @@ impl Discretisation {
     }
 
     /// The k-th derivative of the filtered signal held in `state` (`k < order`), in the unit of
-    /// the input per second^k.
+    /// the input per second^k. Past the order it reads 0; it panics for `k ≥ MAX_ORDER` (a
+    /// programming error, not a data error).
     #[inline]
     pub fn derivative(&self, state: &SvfState, k: usize) -> f64 {
         state.z[k] * self.unscale[k]
