@@ -48,6 +48,20 @@ fn regressions(
     out
 }
 
+/// The numerics notes' §6.2 data: the typical object under 0.3–8.9 Hz at 5 mm, with noise.
+fn typical_data(seconds: f64) -> Vec<Regression> {
+    regressions(&typical(), &typical_excitation(), 0.0, seconds, true)
+}
+
+fn typical_excitation() -> Multisine {
+    Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005)
+}
+
+/// Scales matching [`typical_excitation`].
+fn typical_scales() -> ColumnScales {
+    ColumnScales::for_excitation(0.005, 10.0, 20.0).unwrap()
+}
+
 fn config(columns: Columns, scales: ColumnScales, forgetting: f64, p0: f64) -> RlsConfig {
     RlsConfig {
         columns,
@@ -89,16 +103,10 @@ fn state_bits(r: &Rls) -> Vec<u64> {
 fn equals_batch_least_squares_without_forgetting() {
     let object = typical();
     let cols = no_friction(true);
-    let data = regressions(
-        &object,
-        &Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005),
-        0.0,
-        20.0,
-        true,
-    );
+    let data = typical_data(20.0);
     let rows: Vec<_> = data.iter().map(|r| r.psi).collect();
     let ys: Vec<_> = data.iter().map(|r| r.y).collect();
-    let scaled = ColumnScales::for_excitation(0.005, 10.0, 20.0).unwrap();
+    let scaled = typical_scales();
     for (name, scales, p0) in [
         ("scaled", scaled, 1e3),
         ("unscaled", ColumnScales::UNIT, 1e6),
@@ -140,14 +148,8 @@ fn equals_batch_least_squares_without_forgetting() {
 #[test]
 fn power_of_two_scaling_changes_no_bits() {
     let cols = no_friction(true);
-    let data = regressions(
-        &typical(),
-        &Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005),
-        0.0,
-        10.0,
-        true,
-    );
-    let scales = ColumnScales::for_excitation(0.005, 10.0, 20.0).unwrap();
+    let data = typical_data(10.0);
+    let scales = typical_scales();
     let cfg = |scales| RlsConfig {
         max_mean_variance: 1e30, // keep the bound inactive: it compares traces, which scaling changes
         ..config(cols, scales, 0.999, 1e3)
@@ -173,13 +175,7 @@ fn power_of_two_scaling_changes_no_bits() {
 fn factor_stays_positive_definite_on_ill_conditioned_data() {
     let object = typical();
     let cols = no_friction(true);
-    let mut data = regressions(
-        &object,
-        &Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005),
-        0.0,
-        30.0,
-        true,
-    );
+    let mut data = typical_data(30.0);
     data.extend(regressions(
         &object,
         &Multisine::log_spaced(2, 2.0, 2.0, 0.005, 0.0),
@@ -210,15 +206,8 @@ fn factor_stays_positive_definite_on_ill_conditioned_data() {
 fn bounded_through_pause_and_static_hold() {
     let object = typical();
     let cols = no_friction(true);
-    let excitation = Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005);
-    let data = regressions(&object, &excitation, 0.0, 10.0, true);
-    let mut rls = Rls::new(config(
-        cols,
-        ColumnScales::for_excitation(0.005, 10.0, 20.0).unwrap(),
-        0.999,
-        1e3,
-    ))
-    .unwrap();
+    let data = typical_data(10.0);
+    let mut rls = Rls::new(config(cols, typical_scales(), 0.999, 1e3)).unwrap();
     learn_all(&mut rls, &data);
     let before = state_bits(&rls);
     let trace_after_learning = rls.trace();
@@ -347,13 +336,7 @@ fn reconverges_after_contact_parameters_double() {
 /// Non-finite samples are rejected and counted; the state is bit-identical afterwards.
 #[test]
 fn non_finite_samples_rejected() {
-    let data = regressions(
-        &typical(),
-        &Multisine::log_spaced(8, 0.3, 8.9, 0.005, 0.005),
-        0.0,
-        2.0,
-        true,
-    );
+    let data = typical_data(2.0);
     let mut rls = Rls::new(config(no_friction(true), ColumnScales::UNIT, 0.999, 1e6)).unwrap();
     learn_all(&mut rls, &data);
     let before = state_bits(&rls);
