@@ -11,7 +11,13 @@
 //! The thin `mmt` binary (`src/main.rs`) does the printing, file writing and timing.
 
 pub mod analysis;
+pub mod filter;
 pub mod model;
 pub mod render;
 pub mod report;
+pub mod rls;
+pub mod sim;
 pub mod trajectory;
+
+#[cfg(test)]
+mod testutil;
