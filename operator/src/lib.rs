@@ -10,4 +10,5 @@
 //! passed in, so every rule is tested without one.
 
 pub mod device;
+pub mod safety;
 pub mod vec3;
