@@ -9,6 +9,7 @@
 //! (that is `protocol`). Nothing here reads a clock inside the device and safety layers: `now` is
 //! passed in, so every rule is tested without one.
 
+pub mod cli;
 pub mod device;
 pub mod safety;
 pub mod vec3;
