@@ -127,9 +127,12 @@ impl SpaceMouseBackend<HidReportSource> {
     /// Opens the first known SpaceMouse found over HID.
     pub fn open_hid(config: &SpaceMouseConfig) -> Result<Self, DeviceError> {
         let api = hid_api()?;
+        // Among known ids, prefer the multi-axis interface (usage page 1, usage 8) when the
+        // backend reports usages; receivers also expose keyboard-like interfaces.
         let info = api
             .device_list()
-            .find(|d| known_device(d.vendor_id(), d.product_id()).is_some())
+            .filter(|d| known_device(d.vendor_id(), d.product_id()).is_some())
+            .max_by_key(|d| d.usage_page() == 1 && d.usage() == 8)
             .ok_or_else(|| DeviceError::NotFound {
                 backend: "SpaceMouse",
                 detail: format!(
