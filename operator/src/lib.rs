@@ -1,2 +1,15 @@
-//! Operator app: haptic devices, the safety layer, the haptic loop stepping the operator node,
-//! QUIC client and the `demo` command. No rendering logic of its own: that is `mmt`'s operator node.
+//! # operator — the operator side of the teleoperation system
+//!
+//! What it is: haptic devices behind one trait with simulated twins ([`device`]), the one safety
+//! layer between renderer and device ([`safety`]), and the command-line entry points of the
+//! `operator` binary ([`cli`]). Later: the haptic loop stepping `mmt`'s operator node, the QUIC
+//! client and `demo`.
+//!
+//! What it is not: no rendering or estimation logic of its own (that is `mmt`), no wire format
+//! (that is `protocol`). Nothing here reads a clock inside the device and safety layers: `now` is
+//! passed in, so every rule is tested without one.
+
+pub mod cli;
+pub mod device;
+pub mod safety;
+pub mod vec3;

@@ -1,0 +1,285 @@
+//! The `operator` commands behind the thin `main.rs`: argument types (clap) and one function per
+//! subcommand, writing to a caller-given output so they are tested without a terminal.
+//!
+//! - `operator devices` — what this machine offers: recognised HID devices, whether the Force
+//!   Dimension SDK loads and which devices it sees, and what each backend can and cannot do.
+//!   Works with no device and no SDK (says so, exits 0).
+//! - `operator run --device SPEC` — parses and opens the device; the network and haptic loop are
+//!   not built yet (says so, exits 2).
+//!
+//! Not here: logging set-up (main), anything of the haptic loop.
+
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
+use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
+use crate::device::{
+    DeviceCapabilities, DeviceError, DeviceSpec, ManagedConfig, OpenOptions, open_device,
+};
+
+/// Operator side of the model-mediated teleoperation system.
+#[derive(Debug, Parser)]
+#[command(name = "operator", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// List the haptic devices and backends this machine offers.
+    Devices(DevicesArgs),
+    /// Open a device and run the operator (network part not built yet).
+    Run(RunArgs),
+}
+
+/// Force Dimension SDK options.
+#[derive(Clone, Debug, Args)]
+pub struct SdkArgs {
+    /// Force Dimension SDK library to load (overrides MMT_FD_SDK_LIB; default libdhd.so from the
+    /// loader's search path).
+    #[arg(long, value_name = "PATH")]
+    pub fd_sdk_lib: Option<PathBuf>,
+    /// Omega hardware watchdog [ms], 0.125 to 31.875: forces go off when commands stop this long.
+    #[arg(long, value_name = "MS", default_value_t = 20.0)]
+    pub fd_watchdog_ms: f64,
+    /// Omega velocity-guard threshold to set (SDK units, > 0); default: keep the factory value.
+    #[arg(long, value_name = "N")]
+    pub fd_velocity_threshold: Option<u32>,
+}
+
+impl SdkArgs {
+    fn config(&self) -> Result<OmegaConfig, DeviceError> {
+        let ms = self.fd_watchdog_ms;
+        let watchdog =
+            Duration::try_from_secs_f64(ms / 1000.0).map_err(|_| DeviceError::InvalidConfig {
+                field: "--fd-watchdog-ms",
+                value: ms.to_string(),
+                expected: "0.125 to 31.875 ms",
+            })?;
+        omega::watchdog_units(watchdog)?;
+        Ok(OmegaConfig {
+            library: self.fd_sdk_lib.clone(),
+            watchdog,
+            velocity_threshold: self.fd_velocity_threshold,
+        })
+    }
+}
+
+/// `operator devices` options.
+#[derive(Clone, Debug, Args)]
+pub struct DevicesArgs {
+    /// SDK options.
+    #[command(flatten)]
+    pub sdk: SdkArgs,
+}
+
+/// `operator run` options.
+#[derive(Clone, Debug, Args)]
+pub struct RunArgs {
+    /// The device: scripted:NAME, replay:FILE.csv, spacemouse or omega.
+    #[arg(long, value_name = "SPEC")]
+    pub device: DeviceSpec,
+    /// Time over which force ramps in after enabling [ms].
+    #[arg(long, value_name = "MS", default_value_t = 200)]
+    pub enable_ramp_ms: u64,
+    /// SpaceMouse speed at full deflection [m/s].
+    #[arg(long, value_name = "M_PER_S", default_value_t = 0.1)]
+    pub spacemouse_speed: f64,
+    /// SDK options.
+    #[command(flatten)]
+    pub sdk: SdkArgs,
+}
+
+/// `operator devices`: prints what this machine offers. Always succeeds unless output fails.
+pub fn devices(args: &DevicesArgs, out: &mut dyn Write) -> anyhow::Result<()> {
+    let hid = spacemouse::list_hid();
+    let probe = match args.sdk.config() {
+        Ok(cfg) => omega::probe(&cfg, std::env::var_os(sdk::ENV_VAR)),
+        Err(e) => SdkProbe {
+            library: Err(e),
+            devices: Vec::new(),
+        },
+    };
+    out.write_all(render_devices(&hid, &probe).as_bytes())?;
+    Ok(())
+}
+
+/// The `devices` report as text.
+#[must_use]
+pub fn render_devices(hid: &Result<(Vec<HidEntry>, usize), DeviceError>, sdk: &SdkProbe) -> String {
+    let mut s = String::new();
+    // Writing to a String cannot fail.
+    let _ = render_into(&mut s, hid, sdk);
+    s
+}
+
+fn render_into(
+    s: &mut String,
+    hid: &Result<(Vec<HidEntry>, usize), DeviceError>,
+    probe: &SdkProbe,
+) -> std::fmt::Result {
+    writeln!(s, "HID devices (SpaceMouse family, vendors 046d and 256f):")?;
+    match hid {
+        Err(e) => writeln!(s, "  cannot enumerate HID devices: {e}")?,
+        Ok((list, total)) if list.is_empty() => writeln!(
+            s,
+            "  none recognised ({total} HID device(s) present; {} known ids)",
+            KNOWN_DEVICES.len()
+        )?,
+        Ok((list, _)) => {
+            for d in list {
+                writeln!(
+                    s,
+                    "  {:04x}:{:04x}  {}  \"{}\"  {}",
+                    d.vendor_id,
+                    d.product_id,
+                    d.model,
+                    d.product.as_deref().unwrap_or("?"),
+                    d.path
+                )?;
+            }
+        }
+    }
+    writeln!(s, "\nForce Dimension SDK:")?;
+    let mut force_device = false;
+    match &probe.library {
+        Err(e) => writeln!(s, "  not available: {e}")?,
+        Ok(path) => {
+            writeln!(s, "  loaded {path}")?;
+            if probe.devices.is_empty() {
+                writeln!(s, "  no device connected")?;
+            }
+            for (i, d) in probe.devices.iter().enumerate() {
+                match d {
+                    Ok(name) => {
+                        force_device = true;
+                        writeln!(s, "  device {i}: {name}")?;
+                    }
+                    Err(e) => writeln!(s, "  device {i}: {e}")?,
+                }
+            }
+        }
+    }
+    writeln!(s, "\nBackends:")?;
+    writeln!(
+        s,
+        "  {:<15} {:<14} {:>9} {:>13} {:<20} notes",
+        "--device", "force output", "max force", "max stiffness", "workspace"
+    )?;
+    let omega = DeviceCapabilities::omega7("omega");
+    let sm = SpaceMouseConfig::default();
+    let rows = [
+        (
+            "scripted:NAME",
+            "no (recorded)",
+            Some(&omega),
+            omega.workspace,
+            "omega.7 twin following a script; forces recorded, felt by no one",
+        ),
+        (
+            "replay:FILE.csv",
+            "no (recorded)",
+            Some(&omega),
+            omega.workspace,
+            "omega.7 twin replaying a recording (t_s,x,y,z[,vx,vy,vz])",
+        ),
+        (
+            "spacemouse",
+            "NO",
+            None,
+            sm.workspace,
+            "velocity input integrated to a bounded position; no force feedback at all",
+        ),
+        (
+            "omega",
+            "yes",
+            Some(&omega),
+            omega.workspace,
+            "needs the Force Dimension SDK (libdhd.so) and a connected omega.x",
+        ),
+    ];
+    for (name, force, caps, ws, note) in rows {
+        let (f, k) = caps.map_or(("-".into(), "-".into()), |c| {
+            (
+                format!("{} N", c.max_force_n),
+                format!("{} N/m", c.max_stiffness_n_per_m),
+            )
+        });
+        writeln!(
+            s,
+            "  {name:<15} {force:<14} {f:>9} {k:>13} {:<20} {note}",
+            ws.describe()
+        )?;
+    }
+    let spacemouse_seen = matches!(hid, Ok((list, _)) if !list.is_empty());
+    writeln!(s)?;
+    if force_device {
+        writeln!(s, "A force-feedback device is available: --device omega")?;
+    } else if spacemouse_seen {
+        writeln!(
+            s,
+            "No force-feedback device found. A SpaceMouse is available as position input only (--device spacemouse)."
+        )?;
+    } else {
+        writeln!(
+            s,
+            "No haptic device found on this machine. Use --device scripted:NAME or replay:FILE.csv (simulated, no force felt)."
+        )?;
+    }
+    Ok(())
+}
+
+/// `operator run`: opens the device, warns when it outputs no force, then stops (network part not
+/// built yet; exit code 2).
+pub fn run(args: &RunArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+    let options = OpenOptions {
+        managed: ManagedConfig {
+            enable_ramp: Duration::from_millis(args.enable_ramp_ms),
+            ..ManagedConfig::default()
+        },
+        spacemouse: SpaceMouseConfig {
+            max_speed_m_per_s: args.spacemouse_speed,
+            ..SpaceMouseConfig::default()
+        },
+        omega: args.sdk.config()?,
+    };
+    let device = open_device(&args.device, &options)?;
+    let spec = device.spec();
+    writeln!(
+        out,
+        "device {}: {} — max force {} N, workspace {}",
+        args.device,
+        spec.name,
+        spec.max_force_n,
+        spec.workspace.describe()
+    )?;
+    if !spec.outputs_force {
+        writeln!(out, "WARNING: {}", no_force_warning(&args.device))?;
+    }
+    writeln!(
+        out,
+        "operator run: the network and haptic loop are not built yet; device opened and closed again."
+    )?;
+    Ok(ExitCode::from(2))
+}
+
+/// The warning printed when the device gives no force feedback.
+#[must_use]
+pub fn no_force_warning(spec: &DeviceSpec) -> String {
+    match spec {
+        DeviceSpec::SpaceMouse => "the SpaceMouse has NO force output: you will feel nothing. It only moves the tool (velocity input integrated to a position).".into(),
+        other => format!("{other} is simulated: forces are recorded but felt by no one."),
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,129 @@
+use super::*;
+
+fn no_sdk() -> SdkProbe {
+    SdkProbe {
+        library: Err(DeviceError::SdkLoad(sdk::SdkLoadError::Library {
+            library: "libdhd.so".into(),
+            chosen_by: "default",
+            searched: sdk::SEARCH_PATH.into(),
+            reason: "libdhd.so: cannot open shared object file".into(),
+        })),
+        devices: Vec::new(),
+    }
+}
+
+#[test]
+fn devices_report_on_a_bare_machine_says_so() {
+    let text = render_devices(&Ok((Vec::new(), 3)), &no_sdk());
+    assert!(
+        text.contains("none recognised (3 HID device(s) present"),
+        "{text}"
+    );
+    assert!(
+        text.contains("not available: cannot load the Force Dimension SDK library 'libdhd.so'")
+    );
+    assert!(text.contains("MMT_FD_SDK_LIB"));
+    assert!(text.contains("No haptic device found on this machine"));
+    // Every backend with what it can and cannot do.
+    for line in [
+        "scripted:NAME",
+        "replay:FILE.csv",
+        "spacemouse      NO",
+        "omega           yes",
+    ] {
+        assert!(text.contains(line), "missing '{line}' in\n{text}");
+    }
+    assert!(
+        text.contains("12 N") && text.contains("5000 N/m") && text.contains("sphere r = 0.075 m")
+    );
+}
+
+#[test]
+fn devices_report_lists_recognised_devices() {
+    let hid = Ok((
+        vec![HidEntry {
+            vendor_id: 0x256f,
+            product_id: 0xc635,
+            model: "SpaceMouse Compact",
+            product: Some("SpaceMouse Compact".into()),
+            path: "/dev/hidraw3".into(),
+        }],
+        5,
+    ));
+    let sdk = SdkProbe {
+        library: Ok("/opt/sdk/libdhd.so".into()),
+        devices: vec![Ok("omega.7".into())],
+    };
+    let text = render_devices(&hid, &sdk);
+    assert!(text.contains("256f:c635  SpaceMouse Compact"), "{text}");
+    assert!(text.contains("/dev/hidraw3"));
+    assert!(text.contains("loaded /opt/sdk/libdhd.so"));
+    assert!(text.contains("device 0: omega.7"));
+    assert!(text.contains("A force-feedback device is available"));
+}
+
+#[test]
+fn devices_command_works_without_devices_or_sdk() {
+    let args = DevicesArgs {
+        sdk: SdkArgs {
+            fd_sdk_lib: Some("/nonexistent/libdhd.so".into()),
+            fd_watchdog_ms: 20.0,
+            fd_velocity_threshold: None,
+        },
+    };
+    let mut out = Vec::new();
+    devices(&args, &mut out).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    assert!(text.contains("/nonexistent/libdhd.so"), "{text}");
+    assert!(text.contains("Backends:"));
+}
+
+#[test]
+fn run_parses_the_device_and_stops_before_the_network() {
+    let cli = Cli::try_parse_from(["operator", "run", "--device", "scripted:hold"]).unwrap();
+    let Command::Run(args) = cli.command else {
+        panic!("not run")
+    };
+    let mut out = Vec::new();
+    let code = run(&args, &mut out).unwrap();
+    assert_eq!(code, ExitCode::from(2));
+    let text = String::from_utf8(out).unwrap();
+    assert!(text.contains("scripted:hold"), "{text}");
+    assert!(text.contains("WARNING"), "{text}");
+    assert!(text.contains("not built yet"), "{text}");
+}
+
+#[test]
+fn bad_device_values_fail_at_parse_time_with_the_allowed_forms() {
+    let e = Cli::try_parse_from(["operator", "run", "--device", "phantom"]).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("'phantom'")
+            && msg.contains("scripted:NAME, replay:FILE.csv, spacemouse, omega"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn spacemouse_warning_says_there_is_no_force() {
+    let w = no_force_warning(&DeviceSpec::SpaceMouse);
+    assert!(w.contains("NO force output"), "{w}");
+}
+
+#[test]
+fn bad_watchdog_is_refused() {
+    let cli = Cli::try_parse_from([
+        "operator",
+        "run",
+        "--device",
+        "omega",
+        "--fd-watchdog-ms",
+        "40",
+    ])
+    .unwrap();
+    let Command::Run(args) = cli.command else {
+        panic!("not run")
+    };
+    let e = run(&args, &mut Vec::new()).unwrap_err().to_string();
+    assert!(e.contains("31.875 ms"), "{e}");
+}

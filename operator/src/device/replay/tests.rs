@@ -1,0 +1,142 @@
+use super::*;
+
+fn parse(text: &str) -> Result<ReplayTrajectory, ReplayError> {
+    ReplayTrajectory::parse(text, "run.csv")
+}
+
+fn err(text: &str) -> String {
+    parse(text).unwrap_err().to_string()
+}
+
+#[test]
+fn interpolates_position_and_given_velocity() {
+    let r = parse("t_s,x,y,z,vx,vy,vz\n0,0,0,0,1,0,0\n1,1,2,3,3,0,0\n").unwrap();
+    let s = r.sample(0.25);
+    assert_eq!(s.position_m, [0.25, 0.5, 0.75]);
+    assert_eq!(s.velocity_m_per_s, [1.5, 0.0, 0.0]);
+    assert_eq!(r.duration_s(), Some(1.0));
+    assert_eq!(r.name(), "run.csv");
+}
+
+#[test]
+fn finite_difference_velocity_when_absent() {
+    // x = t², sampled at 0, 1, 2: central difference at 1 is exact (2), ends one-sided.
+    let r = parse("# comment\n\nt_s, x, y, z\n0,0,0,0\n1,1,0,0\n2,4,0,0\n").unwrap();
+    assert_eq!(r.sample(1.0).velocity_m_per_s, [2.0, 0.0, 0.0]);
+    assert_eq!(r.sample(0.5).velocity_m_per_s, [1.5, 0.0, 0.0]);
+    assert_eq!(r.len(), 3);
+}
+
+#[test]
+fn holds_the_ends_with_zero_velocity() {
+    let r = parse("t_s,x,y,z\n1,1,0,0\n2,2,0,0\n").unwrap();
+    assert_eq!(r.sample(0.0).position_m, [1.0, 0.0, 0.0]);
+    assert_eq!(r.sample(9.0).position_m, [2.0, 0.0, 0.0]);
+    assert_eq!(r.sample(9.0).velocity_m_per_s, [0.0; 3]);
+    assert_eq!(r.sample(f64::NAN).position_m, [1.0, 0.0, 0.0]);
+    let single = parse("t_s,x,y,z\n0,5,6,7\n").unwrap();
+    assert_eq!(single.sample(3.0).position_m, [5.0, 6.0, 7.0]);
+}
+
+#[test]
+fn empty_files_are_refused() {
+    assert!(err("").contains("the file is empty"), "{}", err(""));
+    let e = err("t_s,x,y,z\n\n# only a comment\n");
+    assert!(
+        e.contains("run.csv") && e.contains("no sample after the header"),
+        "{e}"
+    );
+}
+
+#[test]
+fn missing_or_wrong_header_names_the_expected_one() {
+    let e = err("0,0,0,0\n");
+    assert!(
+        e.contains("line 1") && e.contains("t_s,x,y,z") && e.contains("found '0,0,0,0'"),
+        "{e}"
+    );
+    assert!(err("time,x,y,z\n0,0,0,0\n").contains("found 'time,x,y,z'"));
+}
+
+#[test]
+fn non_numeric_field_names_line_and_column() {
+    let e = err("t_s,x,y,z\n0,0,0,0\n0.1,0,abc,0\n");
+    assert_eq!(
+        e,
+        "run.csv: line 3, column 3 (y): expected a number, found 'abc'"
+    );
+}
+
+#[test]
+fn nan_and_inf_are_refused() {
+    let e = err("t_s,x,y,z\n0,NaN,0,0\n");
+    assert!(
+        e.contains("line 2, column 2 (x): expected a finite number, found 'NaN'"),
+        "{e}"
+    );
+    let e = err("t_s,x,y,z,vx,vy,vz\n0,0,0,0,0,0,inf\n");
+    assert!(e.contains("column 7 (vz)") && e.contains("inf"), "{e}");
+}
+
+#[test]
+fn non_monotonic_time_is_refused() {
+    let e = err("t_s,x,y,z\n0,0,0,0\n0.5,0,0,0\n0.5,0,0,0\n");
+    assert!(
+        e.contains("line 4, column 1 (t_s): time 0.5 s is not after the previous sample's 0.5 s"),
+        "{e}"
+    );
+    assert!(err("t_s,x,y,z\n1,0,0,0\n0,0,0,0\n").contains("line 3"));
+}
+
+#[test]
+fn wrong_column_count_is_refused() {
+    let e = err("t_s,x,y,z\n0,0,0,0\n1,0,0\n");
+    assert_eq!(
+        e,
+        "run.csv: line 3: expected 4 columns (as in the header), found 3"
+    );
+    assert!(err("t_s,x,y,z,vx,vy,vz\n0,0,0,0\n").contains("expected 7 columns"));
+}
+
+#[test]
+fn missing_file_names_it() {
+    let e = ReplayTrajectory::load(Path::new("/nonexistent/run.csv"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("/nonexistent/run.csv"), "{e}");
+}
+
+#[test]
+fn writer_output_replays_exactly() {
+    let readings = [
+        (0.0, [0.1, -0.2, 1.0 / 3.0], [0.0, 1e-9, -2.5]),
+        (0.001, [0.1000001, -0.2, 0.3], [1.0, 2.0, 3.0]),
+    ];
+    let mut w = ReplayWriter::new(Vec::new()).unwrap();
+    for (t, p, v) in readings {
+        w.write(
+            t,
+            &DeviceReading {
+                position_m: p,
+                velocity_m_per_s: v,
+            },
+        )
+        .unwrap();
+    }
+    let text = String::from_utf8(w.finish().unwrap()).unwrap();
+    let r = parse(&text).unwrap();
+    assert_eq!(r.samples.len(), readings.len());
+    for (s, (t, p, v)) in r.samples.iter().zip(readings) {
+        assert_eq!((s.t_s, s.position_m, s.velocity_m_per_s), (t, p, v));
+    }
+}
+
+#[test]
+fn writer_refuses_non_finite() {
+    let mut w = ReplayWriter::new(Vec::new()).unwrap();
+    let bad = DeviceReading {
+        position_m: [f64::NAN, 0.0, 0.0],
+        velocity_m_per_s: [0.0; 3],
+    };
+    assert!(w.write(0.0, &bad).is_err());
+}

@@ -1,0 +1,450 @@
+use proptest::prelude::*;
+
+use super::*;
+
+const MS: Duration = Duration::from_millis(1);
+const INSIDE: Vec3 = [0.0; 3];
+const FRESH: Option<Duration> = Some(Duration::ZERO);
+
+fn omega() -> DeviceCapabilities {
+    DeviceCapabilities::omega7("test")
+}
+
+fn layer(config: SafetyConfig) -> SafetyLayer {
+    SafetyLayer::new(&omega(), &config).unwrap()
+}
+
+/// A layer whose rate limit does not interfere.
+fn fast() -> SafetyLayer {
+    layer(SafetyConfig {
+        max_force_rate_n_per_s: 1e12,
+        ..SafetyConfig::default()
+    })
+}
+
+fn tick(k: u32, force_n: Vec3) -> ForceTick {
+    ForceTick {
+        now: k * MS,
+        measured_cp: INSIDE,
+        params_age: FRESH,
+        force_n,
+    }
+}
+
+/// A default layer after `ticks` ticks of a steady force along x (reached after the ramp-up).
+fn holding(force_x: f64, ticks: u32) -> SafetyLayer {
+    let mut s = layer(SafetyConfig::default());
+    for k in 0..ticks {
+        s.filter_force(&tick(k, [force_x, 0.0, 0.0]));
+    }
+    s
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    vec3::norm(vec3::sub(a, b)) < 1e-9
+}
+
+#[test]
+fn nan_storm_from_rest_writes_only_zero() {
+    let mut s = layer(SafetyConfig::default());
+    let bad = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+    for k in 0..300u32 {
+        let f = [bad[k as usize % 3], 1.0, -1.0];
+        assert_eq!(s.filter_force(&tick(k, f)), [0.0; 3]);
+    }
+    assert_eq!(s.stats().non_finite_force.episodes, 1);
+    assert_eq!(s.stats().non_finite_force.ticks, 300);
+}
+
+#[test]
+fn nan_cuts_a_held_force_to_zero_at_once_and_force_returns_rate_limited() {
+    let mut s = holding(5.0, 20);
+    assert!(close(
+        s.filter_force(&tick(20, [5.0, 0.0, 0.0])),
+        [5.0, 0.0, 0.0]
+    ));
+    assert_eq!(s.filter_force(&tick(21, [f64::NAN, 0.0, 0.0])), [0.0; 3]);
+    // Back: 1 N per tick (1000 N/s at 1 kHz).
+    assert!(close(
+        s.filter_force(&tick(22, [5.0, 0.0, 0.0])),
+        [1.0, 0.0, 0.0]
+    ));
+}
+
+proptest! {
+    /// Whatever the renderer outputs, the device sees finite forces within the limit, and zero
+    /// on every tick whose input was not finite.
+    #[test]
+    fn output_is_always_finite_and_bounded(
+        inputs in proptest::collection::vec(
+            (prop_oneof![
+                Just(f64::NAN), Just(f64::INFINITY), Just(f64::NEG_INFINITY), -1e6..1e6f64
+            ], -50.0..50.0f64, -0.2..0.2f64),
+            1..400,
+        )
+    ) {
+        let mut s = layer(SafetyConfig::default());
+        for (k, (fx, fy, x)) in inputs.into_iter().enumerate() {
+            let k = u32::try_from(k).unwrap();
+            let t = ForceTick { measured_cp: [x, 0.0, 0.0], ..tick(k, [fx, fy, 0.0]) };
+            let out = s.filter_force(&t);
+            prop_assert!(vec3::is_finite(out));
+            prop_assert!(vec3::norm(out) <= 12.0 + 1e-9);
+            if !fx.is_finite() {
+                prop_assert_eq!(out, [0.0; 3]);
+            }
+        }
+    }
+}
+
+#[test]
+fn force_step_beyond_the_rate_limit_is_spread_over_ticks() {
+    let mut s = layer(SafetyConfig::default());
+    let mut out = Vec::new();
+    for k in 0..12 {
+        out.push(s.filter_force(&tick(k, [0.0, 10.0, 0.0]))[1]);
+    }
+    // 1000 N/s × 1 ms = 1 N per tick (the first tick uses the nominal period).
+    let want = [
+        1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 10.0, 10.0,
+    ];
+    for (got, want) in out.iter().zip(want) {
+        assert!((got - want).abs() < 1e-9, "{out:?}");
+    }
+    assert_eq!(s.stats().rate_limited.episodes, 1);
+    // Ticks 0–8 are limited; tick 9 reaches 10 N with a step of exactly 1 N.
+    assert_eq!(s.stats().rate_limited.ticks, 9);
+    // Down as well.
+    let down = s.filter_force(&tick(12, [0.0; 3]));
+    assert!(close(down, [0.0, 9.0, 0.0]));
+}
+
+#[test]
+fn saturation_keeps_direction() {
+    let mut s = fast();
+    let out = s.filter_force(&tick(0, [30.0, -40.0, 0.0]));
+    assert!(close(out, [7.2, -9.6, 0.0]), "{out:?}");
+    assert_eq!(s.stats().saturated.ticks, 1);
+    // Below the limit nothing changes.
+    let out = s.filter_force(&tick(1, [3.0, -4.0, 0.0]));
+    assert!(close(out, [3.0, -4.0, 0.0]));
+}
+
+#[test]
+fn a_lower_force_limit_applies() {
+    let mut s = layer(SafetyConfig {
+        force_limit_n: Some(2.0),
+        max_force_rate_n_per_s: 1e12,
+        ..SafetyConfig::default()
+    });
+    assert_eq!(s.max_force_n(), 2.0);
+    assert!(close(
+        s.filter_force(&tick(0, [0.0, 0.0, -9.0])),
+        [0.0, 0.0, -2.0]
+    ));
+}
+
+#[test]
+fn workspace_spring_pushes_back_and_has_priority() {
+    let mut s = fast();
+    // 10 mm outside the 75 mm sphere along +x: 500 N/m × 0.01 m = 5 N inward.
+    let outside = [0.085, 0.0, 0.0];
+    let t = |k, f| ForceTick {
+        measured_cp: outside,
+        ..tick(k, f)
+    };
+    assert!(close(s.filter_force(&t(0, [0.0; 3])), [-5.0, 0.0, 0.0]));
+    // A sideways renderer force is shrunk so the total stays at 12 N; the spring is intact.
+    let out = s.filter_force(&t(1, [0.0, 12.0, 0.0]));
+    assert!(
+        (out[0] + 5.0).abs() < 1e-9 && (vec3::norm(out) - 12.0).abs() < 1e-9,
+        "{out:?}"
+    );
+    // A renderer pushing outward cannot cancel the push-back beyond the budget.
+    let out = s.filter_force(&t(2, [12.0, 0.0, 0.0]));
+    assert!(close(out, [7.0, 0.0, 0.0]), "{out:?}");
+    let out = s.filter_force(&t(3, [-12.0, 0.0, 0.0]));
+    assert!(close(out, [-12.0, 0.0, 0.0]), "{out:?}");
+    assert_eq!(s.stats().workspace.episodes, 1);
+    // Inside again: no spring.
+    assert!(close(
+        s.filter_force(&tick(4, [1.0, 0.0, 0.0])),
+        [1.0, 0.0, 0.0]
+    ));
+}
+
+#[test]
+fn workspace_stiffness_is_capped_at_the_device_maximum() {
+    let mut s = layer(SafetyConfig {
+        workspace_stiffness_n_per_m: 1e6,
+        max_force_rate_n_per_s: 1e12,
+        ..SafetyConfig::default()
+    });
+    let t = ForceTick {
+        measured_cp: [0.0, 0.0, 0.076],
+        ..tick(0, [0.0; 3])
+    };
+    // 5000 N/m × 1 mm = 5 N (not 1000 N, not even 12 N).
+    assert!(close(s.filter_force(&t), [0.0, 0.0, -5.0]));
+}
+
+/// Runs a constant 6 N renderer force; `gap_at` inserts a late tick, `age` gives the parameter
+/// age per tick. Returns the output magnitudes at each tick time [ms].
+fn run_watchdog(
+    ticks: u32,
+    gap_at: Option<u32>,
+    age: impl Fn(u32) -> Option<Duration>,
+) -> (Vec<(u32, f64)>, SafetyLayer) {
+    let mut s = layer(SafetyConfig::default());
+    let mut out = Vec::new();
+    let mut t = 0;
+    for k in 0..ticks {
+        t += if Some(k) == gap_at { 6 } else { 1 };
+        let f = s.filter_force(&ForceTick {
+            now: t * MS,
+            measured_cp: INSIDE,
+            params_age: age(t),
+            force_n: [6.0, 0.0, 0.0],
+        });
+        out.push((t, f[0]));
+    }
+    (out, s)
+}
+
+fn assert_no_step(out: &[(u32, f64)]) {
+    // Skip the start, where the rate limit ramps the force up at 1 N per tick.
+    for w in out[10..].windows(2) {
+        // The fade is 6 N / 50 ms = 0.12 N/ms (0.72 N over the 6 ms gap); the fade-in is slower.
+        let (dt, df) = (f64::from(w[1].0 - w[0].0), (w[1].1 - w[0].1).abs());
+        assert!(df <= 0.12 * dt.min(3.0) + 1e-9, "step {w:?}");
+    }
+}
+
+#[test]
+fn loop_overrun_fades_to_zero_and_recovers() {
+    let (out, s) = run_watchdog(700, Some(100), |_| FRESH);
+    let at = |t: u32| {
+        out.iter()
+            .find(|(tt, _)| *tt == t)
+            .map(|(_, f)| *f)
+            .unwrap()
+    };
+    assert!((at(100) - 6.0).abs() < 1e-9);
+    assert!(at(110) < 6.0 && at(110) > 0.0, "fading, not stepping");
+    assert_eq!(at(160), 0.0, "zero after the fade");
+    assert_eq!(at(200), 0.0, "held during the recovery hold");
+    assert!(at(250) > 0.0 && at(250) < 6.0, "fading back in");
+    assert!((at(600) - 6.0).abs() < 1e-9, "recovered");
+    assert_no_step(&out);
+    assert_eq!(s.stats().loop_overrun.episodes, 1);
+    assert_eq!(s.stats().watchdog_fading.episodes, 1);
+}
+
+#[test]
+fn stale_parameters_fade_out_and_fresh_ones_fade_back_in() {
+    // Parameters stop arriving at t = 100 ms (age grows), resume at 900 ms.
+    let age = |t: u32| {
+        Some(if (100..900).contains(&t) {
+            (t - 100) * MS
+        } else {
+            Duration::ZERO
+        })
+    };
+    let (out, s) = run_watchdog(1500, None, age);
+    let at = |t: u32| out[(t - 1) as usize].1;
+    assert!((at(600) - 6.0).abs() < 1e-9, "age 500 ms is still fresh");
+    assert!(at(620) < 6.0 && at(620) > 0.0, "fading");
+    assert_eq!(at(700), 0.0);
+    assert_eq!(at(950), 0.0, "recovery hold");
+    assert!((at(1400) - 6.0).abs() < 1e-9, "recovered");
+    assert_no_step(&out);
+    assert_eq!(s.stats().stale_params.episodes, 1);
+}
+
+#[test]
+fn missing_parameters_count_as_stale() {
+    let (out, s) = run_watchdog(100, None, |_| None);
+    assert_eq!(out[99].1, 0.0);
+    assert!(s.stats().stale_params.active);
+}
+
+#[test]
+fn clutch_holds_the_command_and_release_continues_without_a_jump() {
+    let mut s = fast();
+    assert_eq!(
+        s.command_position([0.01, 0.0, 0.0], false),
+        [0.01, 0.0, 0.0]
+    );
+    // Engaged: the device moves 3 cm, the command holds.
+    for x in [0.02, 0.03, 0.04] {
+        assert_eq!(s.command_position([x, 0.0, 0.0], true), [0.01, 0.0, 0.0]);
+    }
+    // Released: continues from the held position.
+    assert_eq!(
+        s.command_position([0.04, 0.0, 0.0], false),
+        [0.01, 0.0, 0.0]
+    );
+    let c = s.command_position([0.05, 0.0, 0.0], false);
+    assert!(close(c, [0.02, 0.0, 0.0]), "{c:?}");
+    assert_eq!(s.stats().clutch.episodes, 1);
+}
+
+#[test]
+fn clutch_replaces_the_renderer_force_by_zero_without_a_step() {
+    let mut s = holding(5.0, 10);
+    s.command_position(INSIDE, true);
+    let f = s.filter_force(&tick(10, [5.0, 0.0, 0.0]));
+    assert!(close(f, [4.0, 0.0, 0.0]), "rate limited toward zero: {f:?}");
+}
+
+#[test]
+fn scale_change_does_not_move_the_command() {
+    let mut s = fast();
+    s.command_position([0.02, 0.0, 0.0], false);
+    s.set_position_scale(3.0).unwrap();
+    assert!(close(
+        s.command_position([0.02, 0.0, 0.0], false),
+        [0.02, 0.0, 0.0]
+    ));
+    assert!(close(
+        s.command_position([0.03, 0.0, 0.0], false),
+        [0.05, 0.0, 0.0]
+    ));
+}
+
+#[test]
+fn scaling_rejects_zero_negative_nan_and_inf() {
+    let mut s = fast();
+    s.set_position_scale(2.0).unwrap();
+    for bad in [0.0, -0.0, -1.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let e = s.set_position_scale(bad).unwrap_err();
+        assert!(
+            e.to_string().contains("expected a finite number > 0"),
+            "{e}"
+        );
+        assert!(PositionScale::new(bad).is_err());
+        let cfg = SafetyConfig {
+            position_scale: bad,
+            ..SafetyConfig::default()
+        };
+        assert!(SafetyLayer::new(&omega(), &cfg).is_err());
+    }
+    assert_eq!(s.stats().scale_rejections, 6);
+    assert_eq!(s.position_map().scale().get(), 2.0, "old scale kept");
+}
+
+#[test]
+fn non_finite_measured_position_holds_the_command() {
+    let mut s = fast();
+    s.command_position([0.01, 0.02, 0.03], false);
+    assert_eq!(
+        s.command_position([f64::NAN, 0.0, 0.0], false),
+        [0.01, 0.02, 0.03]
+    );
+    assert_eq!(s.stats().non_finite_position.episodes, 1);
+}
+
+#[derive(Clone, Debug)]
+enum Op {
+    Move(Vec3, bool),
+    Scale(f64),
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    let step = -0.005..0.005f64;
+    prop_oneof![
+        8 => (step.clone(), step.clone(), step, any::<bool>())
+            .prop_map(|(x, y, z, c)| Op::Move([x, y, z], c)),
+        1 => prop_oneof![0.1..10.0f64, Just(0.0), Just(-1.0), Just(f64::NAN)].prop_map(Op::Scale),
+    ]
+}
+
+proptest! {
+    /// Any clutch and scale sequence gives a continuous commanded position: each tick it moves
+    /// at most `scale × device motion` (zero while clutched), never a jump.
+    #[test]
+    fn any_clutch_sequence_gives_a_continuous_command(ops in proptest::collection::vec(op(), 1..300)) {
+        let mut s = fast();
+        let mut measured = [0.0; 3];
+        let mut last = s.command_position(measured, false);
+        for op in ops {
+            match op {
+                Op::Scale(f) => { let _ = s.set_position_scale(f); }
+                Op::Move(d, clutch) => {
+                    let next = vec3::add(measured, d);
+                    let c = s.command_position(next, clutch);
+                    let bound = s.position_map().scale().get() * vec3::norm(d) + 1e-12;
+                    prop_assert!(vec3::norm(vec3::sub(c, last)) <= bound,
+                        "jump {:?} → {:?} for device step {:?}", last, c, d);
+                    if s.position_map().clutched() {
+                        prop_assert_eq!(c, last);
+                    }
+                    measured = next;
+                    last = c;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn stats_serialise_for_reports() {
+    let mut s = layer(SafetyConfig::default());
+    s.filter_force(&tick(0, [f64::NAN, 0.0, 0.0]));
+    let json = serde_json::to_value(s.stats()).unwrap();
+    assert_eq!(json["non_finite_force"]["episodes"], 1);
+    assert_eq!(json["ticks"], 1);
+    assert!(json["non_finite_force"].get("active").is_none());
+}
+
+#[test]
+fn invalid_settings_are_refused_with_the_field() {
+    let bad = [
+        SafetyConfig {
+            max_force_rate_n_per_s: 0.0,
+            ..SafetyConfig::default()
+        },
+        SafetyConfig {
+            force_limit_n: Some(f64::NAN),
+            ..SafetyConfig::default()
+        },
+        SafetyConfig {
+            workspace_stiffness_n_per_m: -1.0,
+            ..SafetyConfig::default()
+        },
+        SafetyConfig {
+            watchdog: WatchdogConfig {
+                fade_out: Duration::ZERO,
+                ..WatchdogConfig::default()
+            },
+            ..SafetyConfig::default()
+        },
+        SafetyConfig {
+            watchdog: WatchdogConfig {
+                recovery_hold: Duration::from_millis(10),
+                ..WatchdogConfig::default()
+            },
+            ..SafetyConfig::default()
+        },
+    ];
+    for cfg in bad {
+        let e = SafetyLayer::new(&omega(), &cfg).unwrap_err().to_string();
+        assert!(e.starts_with("invalid safety setting"), "{e}");
+    }
+}
+
+#[test]
+fn a_device_without_force_output_gets_zero() {
+    let caps = DeviceCapabilities {
+        max_force_n: 0.0,
+        max_stiffness_n_per_m: 0.0,
+        outputs_force: false,
+        ..omega()
+    };
+    let mut s = SafetyLayer::new(&caps, &SafetyConfig::default()).unwrap();
+    let t = ForceTick {
+        measured_cp: [1.0, 0.0, 0.0],
+        ..tick(0, [5.0, 0.0, 0.0])
+    };
+    assert_eq!(s.filter_force(&t), [0.0; 3]);
+}
