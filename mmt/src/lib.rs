@@ -11,6 +11,7 @@
 //! The thin `mmt` binary (`src/main.rs`) does the printing, file writing and timing.
 
 pub mod analysis;
+pub mod estimator;
 pub mod filter;
 pub mod model;
 pub mod render;

@@ -19,6 +19,8 @@ struct Cli {
 enum Command {
     /// Renderer frequency response against the exact |F/X|.
     Transfer(cli::transfer::TransferArgs),
+    /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
+    Estimate(cli::estimate::EstimateArgs),
     /// Error against run time per integrator and step size, on typical, stiff and extreme sets.
     WorkPrecision(cli::work_precision::WorkPrecisionArgs),
 }
@@ -26,6 +28,7 @@ enum Command {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Transfer(args) => cli::transfer::run(args),
+        Command::Estimate(args) => cli::estimate::run(args),
         Command::WorkPrecision(args) => cli::work_precision::run(args),
     }
 }

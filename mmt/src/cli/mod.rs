@@ -1,5 +1,6 @@
 //! The binary's command implementations: argument structs, printing, timing, files.
 
+pub mod estimate;
 pub mod transfer;
 pub mod work_precision;
 

@@ -95,6 +95,8 @@ pub struct Cusum {
     statistic: f64,
     /// Updates since the last start, reset or alarm.
     since_reset: u64,
+    /// Updates left during which the detector neither accumulates nor learns its reference.
+    muted: u32,
 }
 
 impl Cusum {
@@ -106,7 +108,15 @@ impl Cusum {
             output: 0.0,
             statistic: 0.0,
             since_reset: 0,
+            muted: 0,
         }
+    }
+
+    /// Ignores the next `samples` errors (no accumulation, reference untouched), e.g. while the
+    /// filters' switching transient after a contact onset passes; the statistic restarts from 0.
+    pub fn mute(&mut self, samples: u32) {
+        self.muted = samples;
+        self.statistic = 0.0;
     }
 
     /// Starts a new hold-off and re-learns the reference (after a covariance reset or an alarm).
@@ -122,6 +132,10 @@ impl Cusum {
     /// Feeds one a-priori error `e` [N] and output `y` [N]; true on an alarm (the detector then
     /// restarts its hold-off).
     pub fn update(&mut self, e: f64, y: f64) -> bool {
+        if self.muted > 0 {
+            self.muted -= 1;
+            return false;
+        }
         let c = &self.config;
         self.since_reset += 1;
         // EWMA with a running-mean start: weight max(1/τ, 1/k).

@@ -238,6 +238,11 @@ impl Rls {
         Ok(())
     }
 
+    /// Mutes the new-object detector for the next `samples` updates (see [`Cusum::mute`]).
+    pub fn mute_detector(&mut self, samples: u32) {
+        self.cusum.mute(samples);
+    }
+
     /// θ̂ in physical units, every [`col`] entry (zero for inactive columns).
     pub fn theta(&self) -> Theta {
         let mut t = [0.0; N];
