@@ -20,11 +20,15 @@
 //! model of slots, ATM cells or netem's 4-state loss model.
 
 pub mod channel;
+pub mod clock;
 pub mod model;
 pub mod queue;
+pub mod shim;
+pub mod stats;
 
 pub use channel::Channel;
 pub use model::{
     ConfigError, Delivery, DistTable, Distribution, DropReason, Fate, Link, LinkConfig,
     LinkCounters, Loss,
 };
+pub use shim::{Direction, ShimConfig, ShimHandle, ShimStats};
