@@ -25,6 +25,7 @@ pub mod model;
 pub mod queue;
 pub mod shim;
 pub mod stats;
+pub mod units;
 
 pub use channel::Channel;
 pub use model::{
