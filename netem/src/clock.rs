@@ -64,6 +64,32 @@ pub fn set_timer_slack_ns(slack_ns: u64) -> bool {
     rc == 0
 }
 
+/// Puts the calling thread under `SCHED_FIFO` at `priority` (1..=99), so that a runnable
+/// real-time loop preempts ordinary work at once instead of waiting for a CFS time slice. Needs
+/// `CAP_SYS_NICE` (or an `RLIMIT_RTPRIO` allowance); the kernel's RT throttling (by default 95 %
+/// of each second) still leaves the rest of the machine some CPU.
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+pub fn set_realtime_priority(priority: u8) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: libc::c_int::from(priority),
+    };
+    // SAFETY: `param` is a valid, initialised `sched_param` that outlives the call; pid 0 means
+    // the calling thread, so no other thread's state is touched.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// Real-time scheduling is only implemented on Linux.
+#[cfg(not(target_os = "linux"))]
+pub fn set_realtime_priority(_priority: u8) -> std::io::Result<()> {
+    Err(std::io::Error::from(std::io::ErrorKind::Unsupported))
+}
+
 /// Sets the calling thread's timer slack (no-op off Linux).
 #[cfg(not(target_os = "linux"))]
 pub fn set_timer_slack_ns(_slack_ns: u64) -> bool {

@@ -150,7 +150,8 @@ fn command() -> Command {
         .arg(Arg::new("forward").long("forward").value_name("ADDR").required(true).help("Address packets from the client go to, e.g. 127.0.0.1:4433"))
         .arg(Arg::new("seed").long("seed").value_name("N").help("Seed of the links' random draws; the same seed gives the same fates [default: 0]"))
         .arg(Arg::new("log").long("log").value_name("FILE.csv").help("Write one CSV row per packet (see below)"))
-        .arg(Arg::new("spin").long("spin").value_name("TIME").help("Busy-spin this long before each release for µs accuracy; 0 = sleep only [default: 200us]"));
+        .arg(Arg::new("spin").long("spin").value_name("TIME").help("Busy-spin this long before each release for µs accuracy; 0 = sleep only [default: 200us]"))
+        .arg(Arg::new("rt-priority").long("rt-priority").value_name("1-99").help("Run the scheduler thread under SCHED_FIFO at this priority (needs CAP_SYS_NICE); bounds the lateness tail on a loaded machine [default: off]"));
     for knob in KNOBS {
         let [flag, up, down] = knob.flags;
         command = command.arg(
@@ -187,6 +188,10 @@ fn shim_config(m: &ArgMatches) -> anyhow::Result<ShimConfig> {
     }
     if let Some(spin) = m.get_one::<String>("spin") {
         config.spin_window_ns = parse_duration_ns(spin).context("--spin")?;
+    }
+    if let Some(v) = m.get_one::<String>("rt-priority") {
+        config.realtime_priority =
+            Some(integer(("rt-priority", v), "a priority: expected 1..=99")?);
     }
     config.log_path = m.get_one::<String>("log").map(PathBuf::from);
     Ok(config)

@@ -108,6 +108,11 @@ pub struct ShimConfig {
     pub spin_window_ns: u64,
     /// Write the per-packet CSV log here ([`CSV_HEADER`]). Default none.
     pub log_path: Option<PathBuf>,
+    /// Run the scheduler thread under `SCHED_FIFO` at this priority (1..=99). Default none
+    /// (ordinary scheduling). On a loaded machine this is what bounds the lateness tail: without
+    /// it the woken scheduler waits for a CPU behind other work. Needs `CAP_SYS_NICE`; if refused
+    /// the shim runs anyway and reports why in [`ShimStats::realtime_error`].
+    pub realtime_priority: Option<u8>,
 }
 
 impl ShimConfig {
@@ -121,6 +126,7 @@ impl ShimConfig {
             seed: 0,
             spin_window_ns: DEFAULT_SPIN_WINDOW_NS,
             log_path: None,
+            realtime_priority: None,
         }
     }
 }
@@ -154,6 +160,9 @@ pub enum ShimError {
         /// The operating system's reason.
         source: std::io::Error,
     },
+    /// The real-time priority is out of range.
+    #[error("real-time priority {0}: expected 1..=99 (SCHED_FIFO)")]
+    Priority(u8),
     /// A thread could not be started.
     #[error("cannot start the {thread} thread")]
     Spawn {
@@ -183,6 +192,7 @@ struct Shared {
     discarded_at_shutdown: AtomicU64,
     log_records_dropped: AtomicU64,
     log_error: Mutex<Option<String>>,
+    realtime_error: Mutex<Option<String>>,
     next_seq: AtomicU64,
 }
 
@@ -216,6 +226,9 @@ pub fn start(config: ShimConfig) -> Result<ShimHandle, ShimError> {
         link(Direction::Up, &config.up)?,
         link(Direction::Down, &config.down)?,
     ];
+    if let Some(priority) = config.realtime_priority.filter(|p| !(1..=99).contains(p)) {
+        return Err(ShimError::Priority(priority));
+    }
     let sockets = worker::Sockets::open(config.listen, config.forward, POLL)?;
     let local_addr = sockets.front_addr;
     let writer = match &config.log_path {
@@ -239,6 +252,7 @@ pub fn start(config: ShimConfig) -> Result<ShimHandle, ShimError> {
         discarded_at_shutdown: AtomicU64::new(0),
         log_records_dropped: AtomicU64::new(0),
         log_error: Mutex::new(None),
+        realtime_error: Mutex::new(None),
         next_seq: AtomicU64::new(0),
     });
     let mut handle = ShimHandle {
@@ -265,6 +279,7 @@ pub fn start(config: ShimConfig) -> Result<ShimHandle, ShimError> {
         rx: packet_rx,
         queue: DueQueue::new(),
         spin_window_ns: config.spin_window_ns,
+        realtime_priority: config.realtime_priority,
         log: sink.clone(),
         highest_released: [None; 2],
     };

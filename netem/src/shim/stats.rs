@@ -53,6 +53,8 @@ pub struct ShimStats {
     pub log_records_dropped: u64,
     /// Why the log writer stopped, if it failed.
     pub log_error: Option<String>,
+    /// Why the scheduler's real-time priority was refused, if it was asked for and refused.
+    pub realtime_error: Option<String>,
 }
 
 impl ShimStats {
@@ -93,6 +95,7 @@ pub(super) fn snapshot(shared: &Shared) -> ShimStats {
         discarded_at_shutdown: shared.discarded_at_shutdown.load(Relaxed),
         log_records_dropped: shared.log_records_dropped.load(Relaxed),
         log_error: lock(&shared.log_error).clone(),
+        realtime_error: lock(&shared.realtime_error).clone(),
     }
 }
 
@@ -141,6 +144,9 @@ impl fmt::Display for ShimStats {
         }
         if let Some(error) = &self.log_error {
             write!(f, "\nlog write failed: {error}")?;
+        }
+        if let Some(error) = &self.realtime_error {
+            write!(f, "\nreal-time priority refused: {error}")?;
         }
         Ok(())
     }

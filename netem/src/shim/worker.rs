@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use super::log::{LogFate, LogRecord, LogSink};
 use super::{Direction, POLL, Shared, ShimError, lock};
-use crate::clock::{now_ns, set_timer_slack_ns};
+use crate::clock::{now_ns, set_realtime_priority, set_timer_slack_ns};
 use crate::model::{Delivery, DropReason, Fate};
 use crate::queue::{Due, DueQueue};
 
@@ -193,6 +193,7 @@ pub(super) struct Scheduler {
     pub(super) rx: mpsc::Receiver<(u64, u64, Packet)>,
     pub(super) queue: DueQueue<Packet>,
     pub(super) spin_window_ns: u64,
+    pub(super) realtime_priority: Option<u8>,
     pub(super) log: LogSink,
     /// Highest arrival index released per direction, to count packets released out of order.
     pub(super) highest_released: [Option<u64>; 2],
@@ -201,6 +202,9 @@ pub(super) struct Scheduler {
 impl Scheduler {
     pub(super) fn run(mut self) {
         set_timer_slack_ns(1);
+        if let Some(Err(e)) = self.realtime_priority.map(set_realtime_priority) {
+            *lock(&self.shared.realtime_error) = Some(e.to_string());
+        }
         'outer: while !self.shared.stop.load(Relaxed) {
             loop {
                 match self.rx.try_recv() {
