@@ -21,6 +21,8 @@ enum Command {
     Transfer(cli::transfer::TransferArgs),
     /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
     Estimate(cli::estimate::EstimateArgs),
+    /// The renderer on extreme and garbage inputs.
+    Stress(cli::stress::StressArgs),
     /// Error against run time per integrator and step size, on typical, stiff and extreme sets.
     WorkPrecision(cli::work_precision::WorkPrecisionArgs),
 }
@@ -29,6 +31,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),
+        Command::Stress(args) => cli::stress::run(args),
         Command::WorkPrecision(args) => cli::work_precision::run(args),
     }
 }

@@ -1,6 +1,7 @@
 //! The binary's command implementations: argument structs, printing, timing, files.
 
 pub mod estimate;
+pub mod stress;
 pub mod transfer;
 pub mod work_precision;
 
