@@ -10,5 +10,7 @@
 //! device; time and randomness are arguments, so a run with the same inputs gives the same bits.
 //! The thin `mmt` binary (`src/main.rs`) does the printing, file writing and timing.
 
+pub mod cloud;
 pub mod model;
 pub mod trajectory;
+mod vec3;

@@ -4,7 +4,10 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "mmt", about = "Model-mediated teleoperation: analysis commands")]
+#[command(
+    name = "mmt",
+    about = "Model-mediated teleoperation: analysis commands"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

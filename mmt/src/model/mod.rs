@@ -334,14 +334,20 @@ impl MassMatrixForm {
     /// Force on the tool for mass state `z` and tool state `u`.
     #[inline]
     pub fn force_on_tool(&self, z: [f64; 2], u: [f64; 2]) -> f64 {
-        force_on_tool(self.k_contact_n_per_m * (u[0] - z[0]) + self.b_contact_ns_per_m * (u[1] - z[1]))
+        force_on_tool(
+            self.k_contact_n_per_m * (u[0] - z[0]) + self.b_contact_ns_per_m * (u[1] - z[1]),
+        )
     }
 
     /// Quasi-static consistent state for a tool at rest at `x`: the mass where the springs balance
     /// and at rest (`x_m = k2 x / (k1 + k2)`), or at `x` when `k1 + k2 = 0`.
     pub fn rest_state(&self, x: f64) -> [f64; 2] {
         let s = -self.j[1][0];
-        let xm = if s > 0.0 { self.k_contact_n_per_m * x / s } else { x };
+        let xm = if s > 0.0 {
+            self.k_contact_n_per_m * x / s
+        } else {
+            x
+        };
         [xm, 0.0]
     }
 }
@@ -443,7 +449,12 @@ mod tests {
         assert_eq!(exp1.left_out(), vec!["ground spring k1"]);
         assert_eq!(
             Structure::KelvinVoigt.left_out(),
-            vec!["mass", "ground spring k1", "ground damper b1", "coulomb friction"]
+            vec![
+                "mass",
+                "ground spring k1",
+                "ground damper b1",
+                "coulomb friction"
+            ]
         );
     }
 
