@@ -7,7 +7,7 @@
 
 use std::fmt::Write as _;
 
-use super::records::{self, Ctx, Element, Field, Lines, Scalar, Sink};
+use super::records::{self, Ctx, Data, Element, Field, Lines, Scalar};
 use super::{Format, LoadOptions, LoadedCloud, Location, ParseError};
 use crate::cloud::Pose;
 
@@ -22,34 +22,18 @@ pub enum PcdEncoding {
 
 /// Parses a PCD file's bytes.
 pub fn parse_pcd(bytes: &[u8], options: LoadOptions) -> Result<LoadedCloud, ParseError> {
-    let ctx = Ctx {
-        format: Format::Pcd,
-        policy: options.non_finite,
-    };
+    let ctx = Ctx::new(Format::Pcd, options);
     let mut lines = Lines::new(bytes);
     let header = parse_header(&mut lines)?;
-    let mut sink = Sink::default();
-    let el = &header.points;
-    if header.binary {
-        let mut pos = lines.pos;
-        records::read_binary(bytes, &mut pos, el, false, ctx, &mut sink)?;
-        records::expect_binary_end(bytes, pos, ctx, el.count)?;
-    } else {
-        records::read_ascii(&mut lines, el, ctx, &mut sink)?;
-        records::expect_ascii_end(&mut lines, ctx, el.count)?;
-    }
-    Ok(LoadedCloud {
-        points: sink.points,
-        skipped_non_finite: sink.skipped_non_finite,
-        viewpoint: header.viewpoint,
-    })
+    let elements = std::slice::from_ref(&header.points);
+    records::read_data(bytes, lines, elements, header.data, ctx, header.viewpoint)
 }
 
 /// Writes `points` as a PCD v0.7 file with `F 4` x, y, z, one row (`HEIGHT 1`).
 pub fn encode_pcd(points: &[[f32; 3]], encoding: PcdEncoding) -> Vec<u8> {
-    let data = match encoding {
-        PcdEncoding::Ascii => "ascii",
-        PcdEncoding::Binary => "binary",
+    let (keyword, data) = match encoding {
+        PcdEncoding::Ascii => ("ascii", Data::Ascii),
+        PcdEncoding::Binary => ("binary", Data::Binary { big_endian: false }),
     };
     let n = points.len();
     let mut header = String::new();
@@ -58,36 +42,21 @@ pub fn encode_pcd(points: &[[f32; 3]], encoding: PcdEncoding) -> Vec<u8> {
         header,
         "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n\
          TYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\n\
-         DATA {data}\n"
+         DATA {keyword}\n"
     );
     let mut out = header.into_bytes();
-    match encoding {
-        PcdEncoding::Ascii => {
-            let mut text = String::with_capacity(n * 30);
-            for p in points {
-                let _ = writeln!(text, "{} {} {}", p[0], p[1], p[2]);
-            }
-            out.extend_from_slice(text.as_bytes());
-        }
-        PcdEncoding::Binary => out.extend(points.iter().flatten().flat_map(|c| c.to_le_bytes())),
-    }
+    records::write_points(&mut out, points, data);
     out
 }
 
 struct Header {
     points: Element,
-    binary: bool,
+    data: Data,
     viewpoint: Option<Pose>,
 }
 
 fn header_error(at: usize, expected: &str, found: &[u8]) -> ParseError {
-    let shown = &found[..found.len().min(60)];
-    ParseError::Header {
-        format: Format::Pcd,
-        at: Location::Line(at),
-        expected: expected.to_owned(),
-        found: String::from_utf8_lossy(shown).into_owned(),
-    }
+    records::header_error(Format::Pcd, at, expected, found)
 }
 
 /// The header lines seen, with their line numbers (for errors that span lines).
@@ -105,7 +74,7 @@ struct Seen<'a> {
 
 fn parse_header(lines: &mut Lines<'_>) -> Result<Header, ParseError> {
     let mut seen = Seen::default();
-    let (data_line, binary) = loop {
+    let (data_line, data) = loop {
         let Some((n, raw)) = lines.next() else {
             return Err(header_error(
                 lines.line + 1,
@@ -148,8 +117,8 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<Header, ParseError> {
                 seen.viewpoint = Some(pose);
             }
             "DATA" => match rest.as_slice() {
-                ["ascii"] => break (n, false),
-                ["binary"] => break (n, true),
+                ["ascii"] => break (n, Data::Ascii),
+                ["binary"] => break (n, Data::Binary { big_endian: false }),
                 ["binary_compressed"] => {
                     return Err(ParseError::Unsupported {
                         format: Format::Pcd,
@@ -171,7 +140,7 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<Header, ParseError> {
     let points = points_element(&seen, data_line)?;
     Ok(Header {
         points,
-        binary,
+        data,
         viewpoint: seen.viewpoint,
     })
 }
@@ -248,19 +217,7 @@ fn points_element(seen: &Seen<'_>, data_line: usize) -> Result<Element, ParseErr
             Field::Array(scalar, count)
         });
     }
-    let mut xyz = [0usize; 3];
-    for (slot, axis) in xyz.iter_mut().zip(['x', 'y', 'z']) {
-        *slot = names
-            .iter()
-            .zip(&fields)
-            .position(|(name, f)| {
-                name.len() == 1 && name.starts_with(axis) && matches!(f, Field::Scalar(_))
-            })
-            .ok_or(ParseError::MissingCoordinate {
-                format: Format::Pcd,
-                axis,
-            })?;
-    }
+    let xyz = records::find_xyz(Format::Pcd, names, &fields)?;
     let width = seen
         .width
         .ok_or_else(|| header_error(data_line, "a WIDTH line before DATA", b"DATA"))?;

@@ -6,8 +6,8 @@
 
 use std::fmt::Write as _;
 
-use super::records::{self, Ctx, Element, Field, Lines, Scalar, Sink};
-use super::{Format, LoadOptions, LoadedCloud, Location, ParseError};
+use super::records::{self, Ctx, Data, Element, Field, Lines, Scalar};
+use super::{Format, LoadOptions, LoadedCloud, ParseError};
 
 /// PLY data encodings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,35 +22,10 @@ pub enum PlyEncoding {
 
 /// Parses a PLY file's bytes.
 pub fn parse_ply(bytes: &[u8], options: LoadOptions) -> Result<LoadedCloud, ParseError> {
-    let ctx = Ctx {
-        format: Format::Ply,
-        policy: options.non_finite,
-    };
+    let ctx = Ctx::new(Format::Ply, options);
     let mut lines = Lines::new(bytes);
     let (encoding, elements) = parse_header(&mut lines)?;
-    let mut sink = Sink::default();
-    let last_count = elements.last().map_or(0, |e| e.count);
-    match encoding {
-        PlyEncoding::Ascii => {
-            for el in &elements {
-                records::read_ascii(&mut lines, el, ctx, &mut sink)?;
-            }
-            records::expect_ascii_end(&mut lines, ctx, last_count)?;
-        }
-        PlyEncoding::BinaryLittleEndian | PlyEncoding::BinaryBigEndian => {
-            let big = encoding == PlyEncoding::BinaryBigEndian;
-            let mut pos = lines.pos;
-            for el in &elements {
-                records::read_binary(bytes, &mut pos, el, big, ctx, &mut sink)?;
-            }
-            records::expect_binary_end(bytes, pos, ctx, last_count)?;
-        }
-    }
-    Ok(LoadedCloud {
-        points: sink.points,
-        skipped_non_finite: sink.skipped_non_finite,
-        viewpoint: None,
-    })
+    records::read_data(bytes, lines, &elements, encoding.data(), ctx, None)
 }
 
 /// Writes `points` as a PLY file with `float` x, y, z.
@@ -69,32 +44,22 @@ pub fn encode_ply(points: &[[f32; 3]], encoding: PlyEncoding) -> Vec<u8> {
         points.len()
     );
     let mut out = header.into_bytes();
-    match encoding {
-        PlyEncoding::Ascii => {
-            let mut text = String::with_capacity(points.len() * 30);
-            for p in points {
-                let _ = writeln!(text, "{} {} {}", p[0], p[1], p[2]);
-            }
-            out.extend_from_slice(text.as_bytes());
-        }
-        PlyEncoding::BinaryLittleEndian => {
-            out.extend(points.iter().flatten().flat_map(|c| c.to_le_bytes()));
-        }
-        PlyEncoding::BinaryBigEndian => {
-            out.extend(points.iter().flatten().flat_map(|c| c.to_be_bytes()));
-        }
-    }
+    records::write_points(&mut out, points, encoding.data());
     out
 }
 
-fn header_error(at: usize, expected: &str, found: &[u8]) -> ParseError {
-    let shown = &found[..found.len().min(60)];
-    ParseError::Header {
-        format: Format::Ply,
-        at: Location::Line(at),
-        expected: expected.to_owned(),
-        found: String::from_utf8_lossy(shown).into_owned(),
+impl PlyEncoding {
+    fn data(self) -> Data {
+        match self {
+            PlyEncoding::Ascii => Data::Ascii,
+            PlyEncoding::BinaryLittleEndian => Data::Binary { big_endian: false },
+            PlyEncoding::BinaryBigEndian => Data::Binary { big_endian: true },
+        }
     }
+}
+
+fn header_error(at: usize, expected: &str, found: &[u8]) -> ParseError {
+    records::header_error(Format::Ply, at, expected, found)
 }
 
 fn scalar_type(name: &str) -> Option<Scalar> {
@@ -205,19 +170,6 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
         ));
     };
     let el = &mut elements[vertex];
-    let mut xyz = [0usize; 3];
-    for (slot, axis) in xyz.iter_mut().zip(['x', 'y', 'z']) {
-        *slot = names[vertex]
-            .iter()
-            .zip(&el.fields)
-            .position(|(name, f)| {
-                name.len() == 1 && name.starts_with(axis) && matches!(f, Field::Scalar(_))
-            })
-            .ok_or(ParseError::MissingCoordinate {
-                format: Format::Ply,
-                axis,
-            })?;
-    }
-    el.xyz = Some(xyz);
+    el.xyz = Some(records::find_xyz(Format::Ply, &names[vertex], &el.fields)?);
     Ok((encoding, elements))
 }

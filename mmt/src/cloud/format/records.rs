@@ -1,8 +1,10 @@
 //! The record layer shared by PLY and PCD: scalar types, record layouts, and the readers for
 //! binary and ASCII data. Headers are parsed by `ply.rs` and `pcd.rs` into an [`Element`].
 
-use super::{Format, Location, NonFinitePolicy, ParseError};
-use crate::cloud::CloudFrame;
+use std::fmt::Write as _;
+
+use super::{Format, LoadOptions, LoadedCloud, Location, NonFinitePolicy, ParseError};
+use crate::cloud::{CloudFrame, Pose};
 
 /// A scalar type of a property/field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,9 +105,9 @@ pub(super) struct Element {
 
 /// Where the points go.
 #[derive(Debug, Default)]
-pub(super) struct Sink {
-    pub points: Vec<[f32; 3]>,
-    pub skipped_non_finite: usize,
+struct Sink {
+    points: Vec<[f32; 3]>,
+    skipped_non_finite: usize,
 }
 
 /// Reading context: which format, what to do with NaN.
@@ -113,6 +115,114 @@ pub(super) struct Sink {
 pub(super) struct Ctx {
     pub format: Format,
     pub policy: NonFinitePolicy,
+}
+
+impl Ctx {
+    pub(super) fn new(format: Format, options: LoadOptions) -> Self {
+        Self {
+            format,
+            policy: options.non_finite,
+        }
+    }
+}
+
+/// How the data after the header is encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Data {
+    /// Text, one record per line.
+    Ascii,
+    /// Packed records.
+    Binary { big_endian: bool },
+}
+
+/// Reads every element's records after the header (`lines` stands just after it), keeps the
+/// points of the element with `xyz`, and checks that nothing follows the last record.
+pub(super) fn read_data(
+    bytes: &[u8],
+    mut lines: Lines<'_>,
+    elements: &[Element],
+    data: Data,
+    ctx: Ctx,
+    viewpoint: Option<Pose>,
+) -> Result<LoadedCloud, ParseError> {
+    let mut sink = Sink::default();
+    let last_count = elements.last().map_or(0, |e| e.count);
+    match data {
+        Data::Ascii => {
+            for el in elements {
+                read_ascii(&mut lines, el, ctx, &mut sink)?;
+            }
+            expect_ascii_end(&mut lines, ctx, last_count)?;
+        }
+        Data::Binary { big_endian } => {
+            let mut pos = lines.pos;
+            for el in elements {
+                read_binary(bytes, &mut pos, el, big_endian, ctx, &mut sink)?;
+            }
+            expect_binary_end(bytes, pos, ctx, last_count)?;
+        }
+    }
+    Ok(LoadedCloud {
+        points: sink.points,
+        skipped_non_finite: sink.skipped_non_finite,
+        viewpoint,
+    })
+}
+
+/// Indices in `fields` of the scalar fields named `x`, `y`, `z`.
+pub(super) fn find_xyz<S: AsRef<str>>(
+    format: Format,
+    names: &[S],
+    fields: &[Field],
+) -> Result<[usize; 3], ParseError> {
+    let mut xyz = [0usize; 3];
+    for (slot, axis) in xyz.iter_mut().zip(['x', 'y', 'z']) {
+        *slot = names
+            .iter()
+            .zip(fields)
+            .position(|(name, f)| {
+                let name = name.as_ref();
+                name.len() == 1 && name.starts_with(axis) && matches!(f, Field::Scalar(_))
+            })
+            .ok_or(ParseError::MissingCoordinate { format, axis })?;
+    }
+    Ok(xyz)
+}
+
+/// A header error at a 1-based line, quoting at most 60 bytes of what was found.
+pub(super) fn header_error(
+    format: Format,
+    line: usize,
+    expected: &str,
+    found: &[u8],
+) -> ParseError {
+    let shown = &found[..found.len().min(60)];
+    ParseError::Header {
+        format,
+        at: Location::Line(line),
+        expected: expected.to_owned(),
+        found: String::from_utf8_lossy(shown).into_owned(),
+    }
+}
+
+/// Appends `points` as `x y z` text lines or packed `f32` triples.
+pub(super) fn write_points(out: &mut Vec<u8>, points: &[[f32; 3]], data: Data) {
+    match data {
+        Data::Ascii => {
+            let mut text = String::with_capacity(points.len() * 30);
+            for p in points {
+                // Writing to a String cannot fail.
+                let _ = writeln!(text, "{} {} {}", p[0], p[1], p[2]);
+            }
+            out.extend_from_slice(text.as_bytes());
+        }
+        Data::Binary { big_endian: false } => {
+            out.extend(points.iter().flatten().flat_map(|c| c.to_le_bytes()));
+        }
+        Data::Binary { big_endian: true } => {
+            out.extend(points.iter().flatten().flat_map(|c| c.to_be_bytes()));
+        }
+    }
 }
 
 impl Element {
@@ -139,7 +249,7 @@ impl Element {
 
 /// Reads (or, without `xyz`, skips) the binary records of `el` starting at `*pos` of `bytes`;
 /// advances `*pos` past them.
-pub(super) fn read_binary(
+fn read_binary(
     bytes: &[u8],
     pos: &mut usize,
     el: &Element,
@@ -294,7 +404,7 @@ impl<'a> Iterator for Lines<'a> {
 }
 
 /// Reads (or skips) the ASCII records of `el`, one non-blank line per record.
-pub(super) fn read_ascii(
+fn read_ascii(
     lines: &mut Lines<'_>,
     el: &Element,
     ctx: Ctx,
@@ -369,11 +479,7 @@ pub(super) fn read_ascii(
 }
 
 /// Fails if anything but whitespace follows the last record.
-pub(super) fn expect_ascii_end(
-    lines: &mut Lines<'_>,
-    ctx: Ctx,
-    declared: u64,
-) -> Result<(), ParseError> {
+fn expect_ascii_end(lines: &mut Lines<'_>, ctx: Ctx, declared: u64) -> Result<(), ParseError> {
     match lines.next_nonblank() {
         Some((line_no, _)) => Err(ParseError::TrailingData {
             format: ctx.format,
@@ -385,12 +491,7 @@ pub(super) fn expect_ascii_end(
 }
 
 /// Fails if bytes follow the last binary record.
-pub(super) fn expect_binary_end(
-    bytes: &[u8],
-    pos: usize,
-    ctx: Ctx,
-    declared: u64,
-) -> Result<(), ParseError> {
+fn expect_binary_end(bytes: &[u8], pos: usize, ctx: Ctx, declared: u64) -> Result<(), ParseError> {
     if pos < bytes.len() {
         Err(ParseError::TrailingData {
             format: ctx.format,

@@ -159,36 +159,31 @@ fn wrong_counts_are_rejected() {
 
 #[test]
 fn non_numeric_values_are_rejected_with_line_and_text() {
-    let text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
-                property float z\nend_header\n1 2 3\n4 five 6\n";
-    let err = parse(text.as_bytes()).unwrap_err();
-    assert!(
-        matches!(
-            err,
-            ParseError::NotANumber {
-                at: Location::Line(9),
-                record: 1,
-                ..
-            }
-        ),
-        "{err:?}"
-    );
-    assert!(
-        err.to_string().contains("line 9") && err.to_string().contains("five"),
-        "{err}"
-    );
-    let pcd = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n0,5 1 2\n";
-    let err = parse(pcd.as_bytes()).unwrap_err();
-    assert!(
-        matches!(
-            err,
-            ParseError::NotANumber {
-                at: Location::Line(8),
-                ..
-            }
-        ),
-        "{err:?}"
-    );
+    let ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+               property float z\nend_header\n1 2 3\n4 five 6\n";
+    let pcd = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n\
+               0,5 1 2\n";
+    for (text, line, record, token) in [(ply, 9, 1, "five"), (pcd, 8, 0, "0,5")] {
+        let err = parse(text.as_bytes()).unwrap_err();
+        let ParseError::NotANumber {
+            at,
+            record: r,
+            ref found,
+            ..
+        } = err
+        else {
+            panic!("{err:?}");
+        };
+        assert_eq!(
+            (at, r, found.as_str()),
+            (Location::Line(line), record, token)
+        );
+        let msg = err.to_string();
+        assert!(
+            msg.contains(&format!("line {line}")) && msg.contains(token),
+            "{msg}"
+        );
+    }
 }
 
 #[test]
