@@ -1,5 +1,7 @@
 //! `mmt`: analysis commands over the MMT core. Thin: parse, call the library, print.
 
+mod cli;
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
@@ -14,9 +16,15 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Time the kd-tree build and the proxy step on a noisy plane (and the same steps by brute
+    /// force).
+    ContactBench(cli::contact_bench::Args),
+}
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::ContactBench(args) => cli::contact_bench::run(&args),
+    }
 }

@@ -1,0 +1,3 @@
+//! The `mmt` subcommands: each parses its arguments, calls the library, times and prints.
+
+pub mod contact_bench;
