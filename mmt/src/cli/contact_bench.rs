@@ -78,10 +78,10 @@ pub fn run(args: &Args) -> Result<()> {
     // Nanosecond timings, reported to the nanosecond in ms and µs.
     let report = Report {
         points: args.points,
-        build_ms: (percentile(&mut build_ns, 0.5) * 1e-3).round() * 1e-3,
-        step_us_median: percentile(&mut kd_ns.clone(), 0.5).round() * 1e-3,
-        step_us_p99: percentile(&mut kd_ns.clone(), 0.99).round() * 1e-3,
-        brute_force_step_us_median: percentile(&mut brute_ns.clone(), 0.5).round() * 1e-3,
+        build_ms: (percentile(&mut build_ns, 0.5) / 1e3).round() / 1e3,
+        step_us_median: percentile(&mut kd_ns.clone(), 0.5).round() / 1e3,
+        step_us_p99: percentile(&mut kd_ns.clone(), 0.99).round() / 1e3,
+        brute_force_step_us_median: percentile(&mut brute_ns.clone(), 0.5).round() / 1e3,
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

@@ -340,6 +340,13 @@ mod tests {
     }
 
     #[test]
+    fn an_index_can_be_handed_to_another_thread() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<CloudIndex>();
+        send_sync::<crate::contact::Proxy>();
+    }
+
+    #[test]
     fn empty_clouds_and_bad_queries_find_nothing() {
         let frame = CloudFrame::new(Vec::new(), 0, Pose::IDENTITY).unwrap();
         let index = CloudIndex::build(&frame).unwrap();
