@@ -17,6 +17,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Time the kd-tree build and the proxy step on a noisy plane (and the same steps by brute
+    /// force).
+    ContactBench(cli::contact_bench::Args),
     /// Renderer frequency response against the exact |F/X|.
     Transfer(cli::transfer::TransferArgs),
     /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
@@ -29,6 +32,7 @@ enum Command {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
+        Command::ContactBench(args) => cli::contact_bench::run(&args),
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),
         Command::Stress(args) => cli::stress::run(args),

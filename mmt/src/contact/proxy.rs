@@ -1,0 +1,320 @@
+//! The proxy's movement protocol (thesis appendix C, eq. 12–22), one step per haptic tick.
+//!
+//! Per [`Proxy::step`]:
+//! 1. **Moving cloud** (eq. 12–13): the proxy first moves along the last normal by `v̂/f_c`,
+//!    where `v̂` is the proxy's speed along the normal in the last step. A cloud pushing the
+//!    proxy (entrenched steps) raises `v̂`, so the proxy keeps ahead of an approaching surface.
+//! 2. **Normal and state** (eq. 14–15): from the points within `r3` of the proxy.
+//! 3. **Step** by state: free (eq. 16–17, swept toward the HIP, stopping `(r1+r2)/2` from the
+//!    first point in the way), entrenched (eq. 18–19, out along the normal until every point
+//!    is `(r1+r2)/2` away), contact (eq. 20–22, a bounded slide).
+//! 4. **Output** (thesis D.3): state, normal, frame and surface point at the new position, so
+//!    contact is reported in the tick the proxy reaches the surface.
+//!
+//! # Where this departs from the text, and why
+//!
+//! - **Locality of eq. 16.** The minimum "over all points in the cloud" only involves points
+//!   within `(r1+r2)/2` of the swept segment; they all lie in the ball around the segment's
+//!   midpoint of radius `‖u‖/2 + (r1+r2)/2`. The query takes `‖u‖/2 + r3`, which also covers
+//!   the `r3` ball wherever the proxy stops.
+//! - **Sign in eq. 22.** Eq. 14 makes the normal point out of the surface, so the operator
+//!   pushes in when `n̂ᵀu < 0` (the text's `> 0` assumes the opposite normal); pushing in
+//!   slides along the tangent plane, pulling out moves along `u`.
+//! - **Eq. 22 step length.** When sliding, `d` is capped at `‖u_p‖` so the proxy does not
+//!   overshoot the HIP's projection and chatter around it.
+//! - **Eq. 12–13 velocity term.** Read as `v̂_k = v̂_{k−1} + n̂ᵀs_k f_c` with `s_k` the state
+//!   step that follows the velocity step, `v̂` is the proxy's speed along the normal over the
+//!   last tick; that is how it is computed (from the velocity step actually taken). It is kept
+//!   `≥ 0` and the velocity step is swept like a free step: taken literally (signed, unchecked)
+//!   the term moves the proxy toward the surface by the last approach step without looking,
+//!   which punches through at 1 m/s (the tests fail that way), and an outward step could jump
+//!   into another surface on the free side. `v̂` is 0 when there is no normal (nothing within
+//!   `r3`).
+//! - **Entrenched step (eq. 18).** "All points" is the points within `r1` (those the step must
+//!   clear); without a normal at that instant the last normal is used.
+//!
+//! # Allocation
+//!
+//! The neighbour buffer lives in the proxy and is reused: it grows to the largest
+//! neighbourhood seen, after which steps allocate nothing (tested in `tests/contact_alloc.rs`).
+//! When the cloud ([`Neighbours::cloud_id`]) and the proxy position are unchanged since the end
+//! of the last step, the step starts from that step's final query and surface instead of
+//! repeating them: a sliding or free proxy costs one radius query per step, a resting one none.
+
+use super::distance::{clearing_distance, first_touch};
+use super::neighbours::{Neighbour, Neighbours};
+use super::surface::{LocalSurface, SurfaceFrame, local_surface};
+use super::{ContactOutput, ContactState, ProxyConfig, ProxyError};
+use crate::vec3::{self, V3};
+
+/// Velocity steps shorter than this [m] are rounding noise (a slide along the tangent plane has
+/// `n̂·s` of order 1e-19 m) and are not taken: they would only defeat the query reuse.
+const NEGLIGIBLE_MOVE_M: f64 = 1e-9;
+
+/// Initial capacity of the neighbour buffer: the default 12 mm ball holds ~450 points of a
+/// 1 mm grid; a sweep's ball a few hundred more.
+const INITIAL_NEIGHBOURS: usize = 1024;
+
+/// The three-sphere proxy (thesis appendix C). See the module docs for the protocol.
+#[derive(Clone, Debug)]
+pub struct Proxy {
+    config: ProxyConfig,
+    position: V3,
+    /// `v̂` of eq. 12 [m/s]: the proxy's speed along `last_normal` in the last step, ≥ 0.
+    normal_speed: f64,
+    /// `n̂_{k−1}`: the normal that governed the last step.
+    last_normal: Option<V3>,
+    scratch: Scratch,
+}
+
+impl Proxy {
+    /// A proxy at the HIP's position [m]. Start it in free space (it cannot tell which side
+    /// of a surface it is on).
+    pub fn new(config: ProxyConfig, initial_hip: [f64; 3]) -> Result<Self, ProxyError> {
+        config.validate()?;
+        let mut proxy = Self {
+            config,
+            position: [0.0; 3],
+            normal_speed: 0.0,
+            last_normal: None,
+            scratch: Scratch::default(),
+        };
+        proxy.reset(initial_hip)?;
+        Ok(proxy)
+    }
+
+    /// Moves the proxy to `hip` [m] and forgets its motion (the velocity term and last normal).
+    pub fn reset(&mut self, hip: [f64; 3]) -> Result<(), ProxyError> {
+        if !vec3::is_finite(hip) {
+            return Err(ProxyError::NonFinitePosition { value: hip });
+        }
+        self.position = hip;
+        self.normal_speed = 0.0;
+        self.last_normal = None;
+        Ok(())
+    }
+
+    /// The parameters.
+    pub fn config(&self) -> &ProxyConfig {
+        &self.config
+    }
+
+    /// Current proxy position [m].
+    pub fn position(&self) -> [f64; 3] {
+        self.position
+    }
+
+    /// `v̂` of eq. 12 [m/s]: the speed along the normal the next step starts with.
+    pub fn normal_speed_m_per_s(&self) -> f64 {
+        self.normal_speed
+    }
+
+    /// One tick: moves the proxy toward `hip` [m] without crossing the cloud behind `cloud`,
+    /// and reports the contact at its new position. `cloud` may be a different frame's index on
+    /// every call. A non-finite `hip` holds the proxy where it is (and gives no penetration).
+    pub fn step<N: Neighbours>(&mut self, hip: [f64; 3], cloud: &N) -> ContactOutput {
+        let c = self.config;
+
+        // 1. Eq. 12–13: keep up with a moving cloud (swept, outward only).
+        let mut pre_move = 0.0;
+        let predicted = self.normal_speed / c.rate_hz;
+        if let Some(n) = self.last_normal
+            && predicted > NEGLIGIBLE_MOVE_M
+        {
+            pre_move = self.sweep(cloud, n, predicted);
+            self.position = vec3::add(self.position, vec3::scale(n, pre_move));
+        }
+
+        // 2. Eq. 14–15 and the state at the proxy.
+        let here = self.scratch.surface_at(cloud, self.position, &c);
+        let step_state = classify(&here, &c);
+        let normal = match step_state {
+            ContactState::Free => here.normal,
+            _ => here.normal.or(self.last_normal),
+        };
+
+        // 3. The step of the state (eq. 16–22).
+        let hip_ok = vec3::is_finite(hip);
+        let u = if hip_ok {
+            vec3::sub(hip, self.position)
+        } else {
+            [0.0; 3]
+        };
+        let step = match (step_state, normal) {
+            (ContactState::Free, _) => self.free_step(cloud, u),
+            (ContactState::Entrenched, Some(n)) => self.entrenched_step(n),
+            (ContactState::Entrenched, None) => [0.0; 3],
+            (ContactState::Contact, n) => contact_step(u, n, &c),
+        };
+        self.position = vec3::add(self.position, step);
+
+        // Eq. 12: v̂ ← v̂ + n̂ᵀs f_c, with the velocity step as taken: the proxy's speed along
+        // the normal over this tick.
+        self.normal_speed = match normal {
+            Some(n) => ((pre_move + vec3::dot(n, step)) * c.rate_hz).max(0.0),
+            None => 0.0,
+        };
+        self.last_normal = normal;
+
+        // 4. Thesis D.3: what the surface looks like where the proxy now is.
+        let there = self.scratch.surface_at(cloud, self.position, &c);
+        let frame = there.normal.and_then(SurfaceFrame::from_normal);
+        let normal = frame.map(|f| f.normal);
+        ContactOutput {
+            state: classify(&there, &c),
+            step_state,
+            proxy_m: self.position,
+            normal,
+            frame,
+            penetration_m: normal
+                .filter(|_| hip_ok)
+                .map(|n| vec3::dot(vec3::sub(self.position, hip), n)),
+            surface_point_m: there.centroid,
+            points_used: there.count,
+        }
+    }
+
+    /// Eq. 16–17: toward the HIP until `(r1+r2)/2` from the first point in the way.
+    fn free_step<N: Neighbours>(&mut self, cloud: &N, u: V3) -> V3 {
+        let len = vec3::norm(u);
+        if len <= 0.0 {
+            return [0.0; 3];
+        }
+        let dir = vec3::scale(u, 1.0 / len);
+        let d = self.sweep(cloud, dir, len);
+        if d >= len {
+            // Unobstructed: land exactly on the HIP (no rounding of dir·len).
+            u
+        } else {
+            vec3::scale(dir, d)
+        }
+    }
+
+    /// How far the proxy can move along the unit `dir`, at most `len` [m], before a point comes
+    /// within `(r1+r2)/2` (eq. 16, solved by eq. 28 per point).
+    ///
+    /// The points that can stop it lie within `(r1+r2)/2` of the segment, so within
+    /// `len/2 + (r1+r2)/2` of its midpoint. The query asks for `len/2 + r3` instead, which also
+    /// holds the `r3` ball around wherever the proxy stops: the surface there is then computed
+    /// without a second query.
+    fn sweep<N: Neighbours>(&mut self, cloud: &N, dir: V3, len: f64) -> f64 {
+        let c = &self.config;
+        let a = c.rest_distance_m();
+        let from = self.position;
+        let mid = vec3::add(from, vec3::scale(dir, 0.5 * len));
+        self.scratch.ensure(cloud, mid, 0.5 * len + c.r3_m.max(a));
+        self.scratch
+            .buf
+            .iter()
+            .filter_map(|nb| first_touch(a, vec3::sub(nb.point, from), dir))
+            .fold(len, f64::min)
+    }
+
+    /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away.
+    fn entrenched_step(&self, n: V3) -> V3 {
+        let c = &self.config;
+        let (a, r1_sq) = (c.rest_distance_m(), c.r1_m * c.r1_m);
+        let d = self
+            .scratch
+            .buf
+            .iter()
+            .map(|nb| vec3::sub(nb.point, self.position))
+            .filter(|b| vec3::norm2(*b) < r1_sq)
+            .filter_map(|b| clearing_distance(a, b, n))
+            .fold(0.0, f64::max);
+        vec3::scale(n, d)
+    }
+}
+
+/// Eq. 20–22: `d = γ‖u‖` within `r1` of the HIP, else `ζ r1`; slide along the tangent plane
+/// when pushing in (`n̂ᵀu < 0`), else move along `u`.
+fn contact_step(u: V3, normal: Option<V3>, c: &ProxyConfig) -> V3 {
+    let len = vec3::norm(u);
+    if len <= 0.0 {
+        return [0.0; 3];
+    }
+    let d = if len < c.r1_m {
+        c.gamma * len
+    } else {
+        c.zeta * c.r1_m
+    };
+    match normal {
+        Some(n) if vec3::dot(n, u) < 0.0 => {
+            let along = vec3::sub(u, vec3::scale(n, vec3::dot(n, u)));
+            let along_len = vec3::norm(along);
+            if along_len > 0.0 {
+                vec3::scale(along, d.min(along_len) / along_len)
+            } else {
+                [0.0; 3]
+            }
+        }
+        _ => vec3::scale(u, d / len),
+    }
+}
+
+fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {
+    if s.nearest_d2 < c.r1_m * c.r1_m {
+        ContactState::Entrenched
+    } else if s.nearest_d2 <= c.r2_m * c.r2_m {
+        ContactState::Contact
+    } else {
+        ContactState::Free
+    }
+}
+
+/// The reused neighbour buffer and what it holds: every point within `radius` of `centre` of
+/// the cloud `cloud` (0: nothing; ids start at 1), plus the surface last computed from it.
+#[derive(Clone, Debug)]
+struct Scratch {
+    buf: Vec<Neighbour>,
+    cloud: u64,
+    centre: V3,
+    radius: f64,
+    /// `(at, surface)`: [`local_surface`] at `at` over `buf`, valid until `buf` is refilled.
+    surface: Option<(V3, LocalSurface)>,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Self {
+            buf: Vec::with_capacity(INITIAL_NEIGHBOURS),
+            cloud: 0,
+            centre: [0.0; 3],
+            radius: -1.0,
+            surface: None,
+        }
+    }
+}
+
+impl Scratch {
+    /// Makes the buffer hold at least every point of `cloud` within `radius` of `centre`,
+    /// querying only when the ball it holds does not contain that one.
+    fn ensure<N: Neighbours>(&mut self, cloud: &N, centre: V3, radius: f64) {
+        let held = self.cloud == cloud.cloud_id()
+            && vec3::norm(vec3::sub(centre, self.centre)) + radius <= self.radius;
+        if held {
+            return;
+        }
+        self.buf.clear();
+        let buf = &mut self.buf;
+        cloud.for_each_within(centre, radius, |nb| buf.push(nb));
+        self.cloud = cloud.cloud_id();
+        self.centre = centre;
+        self.radius = radius;
+        self.surface = None;
+    }
+
+    /// Eq. 14–15 at `at` (reusing the last result when neither the cloud nor `at` changed);
+    /// afterwards the buffer holds every point within `r3` of `at`.
+    fn surface_at<N: Neighbours>(&mut self, cloud: &N, at: V3, c: &ProxyConfig) -> LocalSurface {
+        self.ensure(cloud, at, c.r3_m);
+        if let Some((cached_at, surface)) = self.surface
+            && cached_at == at
+        {
+            return surface;
+        }
+        let surface = local_surface(at, &self.buf, c.r1_m, c.r3_m, c.normal_estimator);
+        self.surface = Some((at, surface));
+        surface
+    }
+}

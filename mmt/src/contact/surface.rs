@@ -1,0 +1,371 @@
+//! The local surface around the proxy: Wendland weights (eq. 15), the normal (eq. 14), the
+//! weighted centroid, and the surface frame built from the normal.
+
+use serde::{Deserialize, Serialize};
+
+use super::neighbours::Neighbour;
+use crate::vec3::{self, V3};
+
+/// The Wendland weight of eq. 15 for a point at distance `r` [m]: 1 within `r1`, 0 from `r3`
+/// on, and `(1 − t)⁴ (4t + 1)` with `t = (r − r1)/(r3 − r1)` between (C² smooth at both ends).
+#[inline]
+pub fn wendland(r: f64, r1: f64, r3: f64) -> f64 {
+    Wendland::new(r1, r3).weight(r)
+}
+
+/// A right-handed orthonormal frame on the surface: `tangent1 × tangent2 = normal`.
+///
+/// The tangents are a deterministic function of the normal alone: `tangent1` is the projection
+/// onto the tangent plane of the world axis least aligned with the normal, normalised;
+/// `tangent2 = normal × tangent1`. Axes whose `|n_i|` is within
+/// [`SurfaceFrame::AXIS_TIE`] of the smallest count as tied, and ties go to x, then y: a
+/// horizontal table (`normal ≈ +z`) gets `tangent1 = +x`, `tangent2 = +y` even when its
+/// estimated normal wobbles by a few degrees (an exact tie-break would flip the tangents by 90°
+/// whenever `|n_x|` and `|n_y|` swap order). The frame jumps only where that choice changes,
+/// which no axis-aligned surface comes near; the chosen axis has `|n_i| ≤ 1/√3 + 0.1`, so
+/// its projection never degenerates.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceFrame {
+    /// Unit normal, out of the surface toward the free side.
+    pub normal: [f64; 3],
+    /// First unit tangent.
+    pub tangent1: [f64; 3],
+    /// Second unit tangent, `normal × tangent1`.
+    pub tangent2: [f64; 3],
+}
+
+impl SurfaceFrame {
+    /// How much more aligned with the normal than the least-aligned axis another axis may be
+    /// and still count as tied (`|n_i| − min_j |n_j|`): 0.1, about 6°.
+    pub const AXIS_TIE: f64 = 0.1;
+
+    /// The frame of a normal (normalised here). `None` when it is zero or not finite.
+    pub fn from_normal(normal: [f64; 3]) -> Option<SurfaceFrame> {
+        let n = vec3::normalize(normal)?;
+        let abs = n.map(f64::abs);
+        let least = abs[0].min(abs[1]).min(abs[2]);
+        let axis = (0..3).find(|&i| abs[i] <= least + Self::AXIS_TIE)?;
+        let mut e = [0.0; 3];
+        e[axis] = 1.0;
+        // |n_axis| ≤ 1/√3 + 0.1 < 0.68: the projection has length > 0.73.
+        let tangent1 = vec3::normalize(vec3::sub(e, vec3::scale(n, n[axis])))?;
+        let tangent2 = vec3::cross(n, tangent1);
+        Some(SurfaceFrame {
+            normal: n,
+            tangent1,
+            tangent2,
+        })
+    }
+
+    /// World vector → `(normal, tangent1, tangent2)` components.
+    pub fn to_local(&self, v: [f64; 3]) -> [f64; 3] {
+        [
+            vec3::dot(v, self.normal),
+            vec3::dot(v, self.tangent1),
+            vec3::dot(v, self.tangent2),
+        ]
+    }
+}
+
+/// How the proxy estimates the surface normal from the points within `r3`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NormalEstimator {
+    /// Eq. 14 as printed: the Wendland-weighted sum of the unit directions from the points to
+    /// the proxy. Exact on clean clouds, but it is the gradient of a distance field, so on a
+    /// noisy cloud it tilts toward whichever bump the proxy rests on (≈ 5° at 0.5 mm noise
+    /// with the default radii).
+    WeightedDirections,
+    /// The normal of the Wendland-weighted least-squares plane through the points (smallest
+    /// eigenvector of their weighted covariance), oriented to the proxy's side by eq. 14. Same
+    /// weights, same support, but it averages the noise out instead of following it. Falls back
+    /// to eq. 14 where the points do not span a plane (a line, a single point).
+    #[default]
+    WeightedPlaneFit,
+}
+
+/// What the points within `r3` of a position say about the surface there.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct LocalSurface {
+    /// Unit normal toward `centre`'s side; `None` without points or when eq. 14 cancels.
+    pub normal: Option<V3>,
+    /// Wendland-weighted centroid of the points; `None` when every weight is 0.
+    pub centroid: Option<V3>,
+    /// Squared distance to the nearest point [m²] (∞ without points).
+    pub nearest_d2: f64,
+    /// Points within `r3`.
+    pub count: usize,
+}
+
+/// Below this ratio `|n'| / Σψ` the weighted directions of eq. 14 cancel and give no direction.
+const DEGENERATE_NORMAL: f64 = 1e-9;
+
+/// The plane fit is used when the covariance's middle eigenvalue is at least this many times
+/// its smallest (the points spread in two directions, not along a line).
+const PLANARITY: f64 = 2.0;
+
+/// Eq. 14–15 at `centre` over the neighbours within `r3` (others in the slice are ignored).
+/// The slice is summed in its order: the same slice gives the same bits; another backend's order
+/// agrees to rounding.
+pub(crate) fn local_surface(
+    centre: V3,
+    neighbours: &[Neighbour],
+    r1: f64,
+    r3: f64,
+    estimator: NormalEstimator,
+) -> LocalSurface {
+    let psi = Wendland::new(r1, r3);
+    let normal;
+    let sums;
+    match estimator {
+        NormalEstimator::WeightedDirections => {
+            sums = Sums::gather::<true>(centre, neighbours, &psi);
+            normal = sums.eq14();
+        }
+        NormalEstimator::WeightedPlaneFit => {
+            sums = Sums::gather::<false>(centre, neighbours, &psi);
+            // Orient toward the proxy: the proxy sits on the free side of the weighted
+            // centroid. Where that is ambiguous, or the points span no plane, eq. 14 decides.
+            let away = vec3::scale(sums.m1, -1.0);
+            normal = match plane_normal(&sums) {
+                Some(n) if vec3::dot(n, away).abs() > 1e-6 * vec3::norm(away) => {
+                    Some(if vec3::dot(n, away) < 0.0 {
+                        vec3::scale(n, -1.0)
+                    } else {
+                        n
+                    })
+                }
+                Some(n) => Sums::gather::<true>(centre, neighbours, &psi)
+                    .eq14()
+                    .map(|side| {
+                        if vec3::dot(n, side) < 0.0 {
+                            vec3::scale(n, -1.0)
+                        } else {
+                            n
+                        }
+                    }),
+                None if sums.count > 0 => Sums::gather::<true>(centre, neighbours, &psi).eq14(),
+                None => None,
+            };
+        }
+    }
+    LocalSurface {
+        normal,
+        centroid: (sums.weight > 0.0)
+            .then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight))),
+        nearest_d2: sums.nearest_d2,
+        count: sums.count,
+    }
+}
+
+/// Eq. 15 with its constant `1/(r3 − r1)` folded.
+struct Wendland {
+    r1: f64,
+    r3: f64,
+    inv_span: f64,
+}
+
+impl Wendland {
+    fn new(r1: f64, r3: f64) -> Self {
+        Self {
+            r1,
+            r3,
+            inv_span: 1.0 / (r3 - r1),
+        }
+    }
+
+    #[inline(always)]
+    fn weight(&self, r: f64) -> f64 {
+        if r <= self.r1 {
+            1.0
+        } else if r >= self.r3 {
+            0.0
+        } else {
+            let t = (r - self.r1) * self.inv_span;
+            let s = 1.0 - t;
+            let s2 = s * s;
+            s2 * s2 * (4.0 * t + 1.0)
+        }
+    }
+}
+
+/// Weighted sums over the points within `r3`, of the offsets `y = x − centre` (small numbers:
+/// no cancellation against the absolute position).
+struct Sums {
+    count: usize,
+    nearest_d2: f64,
+    /// `Σψ`.
+    weight: f64,
+    /// `Σψ y`.
+    m1: V3,
+    /// `Σψ y yᵀ`: xx, xy, xz, yy, yz, zz.
+    m2: [f64; 6],
+    /// Eq. 14's `n'`, `Σψ (−y)/‖y‖` (only gathered when asked: it costs a division per point).
+    directions: V3,
+}
+
+impl Sums {
+    #[inline(always)]
+    fn gather<const DIRECTIONS: bool>(
+        centre: V3,
+        neighbours: &[Neighbour],
+        psi: &Wendland,
+    ) -> Self {
+        let r3_sq = psi.r3 * psi.r3;
+        let mut s = Sums {
+            count: 0,
+            nearest_d2: f64::INFINITY,
+            weight: 0.0,
+            m1: [0.0; 3],
+            m2: [0.0; 6],
+            directions: [0.0; 3],
+        };
+        for nb in neighbours {
+            let y = vec3::sub(nb.point, centre);
+            let d2 = vec3::norm2(y);
+            if d2 > r3_sq {
+                continue;
+            }
+            s.count += 1;
+            s.nearest_d2 = s.nearest_d2.min(d2);
+            let r = d2.sqrt();
+            let w = psi.weight(r);
+            if DIRECTIONS && r > 0.0 {
+                s.directions = vec3::sub(s.directions, vec3::scale(y, w / r));
+            }
+            let wy = vec3::scale(y, w);
+            s.weight += w;
+            s.m1 = vec3::add(s.m1, wy);
+            s.m2[0] += wy[0] * y[0];
+            s.m2[1] += wy[0] * y[1];
+            s.m2[2] += wy[0] * y[2];
+            s.m2[3] += wy[1] * y[1];
+            s.m2[4] += wy[1] * y[2];
+            s.m2[5] += wy[2] * y[2];
+        }
+        s
+    }
+
+    /// Eq. 14 normalised, `None` when the directions cancel.
+    fn eq14(&self) -> Option<V3> {
+        if vec3::norm(self.directions) > DEGENERATE_NORMAL * self.weight {
+            vec3::normalize(self.directions)
+        } else {
+            None
+        }
+    }
+}
+
+/// Unit normal (either sign) of the weighted least-squares plane through the points: the
+/// eigenvector of the smallest eigenvalue of their weighted covariance. `None` when the points
+/// do not span a plane.
+fn plane_normal(s: &Sums) -> Option<V3> {
+    if s.weight <= 0.0 || !s.weight.is_finite() {
+        return None;
+    }
+    let mean = vec3::scale(s.m1, 1.0 / s.weight);
+    const UPPER: [[usize; 3]; 3] = [[0, 1, 2], [1, 3, 4], [2, 4, 5]];
+    let cov = nalgebra::Matrix3::from_fn(|i, j| s.m2[UPPER[i][j]] / s.weight - mean[i] * mean[j]);
+    let eigen = nalgebra::SymmetricEigen::try_new(cov, f64::EPSILON, 200)?;
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+    let (smallest, middle) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
+    if !(middle > 0.0 && middle >= PLANARITY * smallest.max(0.0)) {
+        return None;
+    }
+    let v = eigen.eigenvectors.column(order[0]);
+    vec3::normalize([v[0], v[1], v[2]])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wendland_is_one_inside_zero_outside_smooth_between() {
+        let (r1, r3) = (1.0, 3.0);
+        assert_eq!(wendland(0.0, r1, r3), 1.0);
+        assert_eq!(wendland(1.0, r1, r3), 1.0);
+        assert_eq!(wendland(3.0, r1, r3), 0.0);
+        assert_eq!(wendland(5.0, r1, r3), 0.0);
+        // t = 0.5: (0.5)^4 · 3 = 0.1875.
+        assert!((wendland(2.0, r1, r3) - 0.1875).abs() < 1e-15);
+        // Monotone and continuous at both ends.
+        let mut last = 1.0;
+        for i in 0..=2000 {
+            let w = wendland(1.0 + i as f64 * 1e-3, r1, r3);
+            assert!(w <= last + 1e-15 && (last - w) < 1e-2);
+            last = w;
+        }
+    }
+
+    #[test]
+    fn table_frame_is_x_y_z_and_every_frame_is_right_handed() {
+        let f = SurfaceFrame::from_normal([0.0, 0.0, 2.0]).unwrap();
+        assert_eq!(f.normal, [0.0, 0.0, 1.0]);
+        assert_eq!(f.tangent1, [1.0, 0.0, 0.0]);
+        assert_eq!(f.tangent2, [0.0, 1.0, 0.0]);
+        let wall = SurfaceFrame::from_normal([1.0, 0.0, 0.0]).unwrap();
+        assert_eq!(wall.tangent1, [0.0, 1.0, 0.0]);
+        assert_eq!(wall.tangent2, [0.0, 0.0, 1.0]);
+        // A table whose estimated normal leans a little either way keeps t1 ≈ +x.
+        for n in [
+            [0.03, 0.02, 1.0],
+            [0.02, 0.03, 1.0],
+            [-1e-16, 1e-17, 1.0],
+            [0.0, -0.05, 1.0],
+        ] {
+            let f = SurfaceFrame::from_normal(n).unwrap();
+            assert!(f.tangent1[0] > 0.99 && f.tangent2[1] > 0.99, "{n:?}: {f:?}");
+        }
+        // Clearly closer to y: y wins.
+        let f = SurfaceFrame::from_normal([0.5, 0.1, 0.86]).unwrap();
+        assert!(f.tangent1[1] > 0.99, "{f:?}");
+        for n in [
+            [0.3, -0.4, 0.8],
+            [-1.0, -1.0, -1.0],
+            [0.0, -1.0, 1e-9],
+            [5.0, 1.0, 0.2],
+        ] {
+            let f = SurfaceFrame::from_normal(n).unwrap();
+            let close = |a: V3, b: V3| vec3::norm(vec3::sub(a, b)) < 1e-12;
+            assert!(close(vec3::cross(f.tangent1, f.tangent2), f.normal));
+            assert!(vec3::dot(f.tangent1, f.normal).abs() < 1e-12);
+            assert!((vec3::norm(f.tangent1) - 1.0).abs() < 1e-12);
+            assert!(close(f.to_local(f.normal), [1.0, 0.0, 0.0]));
+        }
+        assert!(SurfaceFrame::from_normal([0.0; 3]).is_none());
+        assert!(SurfaceFrame::from_normal([f64::NAN, 0.0, 1.0]).is_none());
+    }
+
+    #[test]
+    fn local_surface_of_a_symmetric_patch_points_up_to_its_centroid() {
+        let points: Vec<Neighbour> = (-3..=3)
+            .flat_map(|i| (-3..=3).map(move |j| (i, j)))
+            .enumerate()
+            .map(|(k, (i, j))| Neighbour {
+                index: k as u32,
+                point: [i as f64 * 0.001, j as f64 * 0.001, 0.0],
+            })
+            .collect();
+        let at = |centre: V3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator);
+        for estimator in [
+            NormalEstimator::WeightedDirections,
+            NormalEstimator::WeightedPlaneFit,
+        ] {
+            let s = at([0.0, 0.0, 0.002], estimator);
+            let n = s.normal.unwrap();
+            assert!((n[2] - 1.0).abs() < 1e-12 && n[0].abs() < 1e-12, "{n:?}");
+            assert!(vec3::norm(s.centroid.unwrap()) < 1e-12);
+            assert!((s.nearest_d2 - 4e-6).abs() < 1e-18);
+            assert_eq!(s.count, 49);
+            // Below the patch the normal points down, toward the query point's side.
+            assert!(at([0.0, 0.0, -0.002], estimator).normal.unwrap()[2] < -0.999);
+        }
+        // Points beyond r3 are not counted: from (6, 0, 2) mm a point is within 6 mm when
+        // (6 − x)² + y² ≤ 32 mm²: all 7 of the columns x = 3 and 2 mm, 5 of x = 1 mm.
+        let side = at([0.006, 0.0, 0.002], NormalEstimator::WeightedPlaneFit);
+        assert_eq!(side.count, 7 + 7 + 5);
+        let none = at([0.0, 0.0, 0.1], NormalEstimator::WeightedPlaneFit);
+        assert_eq!((none.normal, none.centroid, none.count), (None, None, 0));
+    }
+}
