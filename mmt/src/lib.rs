@@ -21,6 +21,7 @@ pub mod model;
 pub mod render;
 pub mod report;
 pub mod rls;
+pub mod scene;
 pub mod sim;
 pub mod trajectory;
 mod vec3;

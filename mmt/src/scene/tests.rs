@@ -1,0 +1,150 @@
+use super::*;
+
+#[test]
+fn built_in_scenes_parse_and_validate() {
+    let exp1 = Scene::exp1();
+    assert_eq!(exp1.environment.physical(), Physical::THESIS_EXP1);
+    assert_eq!(exp1.environment.static_friction_n, 0.1);
+    assert_eq!(exp1.environment.stick_velocity_m_per_s, 0.005);
+    assert_eq!(
+        exp1.model.tangential_structure(),
+        Structure::SlidingMass {
+            ground_spring: false,
+            friction: true
+        }
+    );
+    let wall = Scene::wall();
+    assert!(wall.environment.anchored);
+    assert_eq!(wall.model.normal_structure().columns().len(), 2);
+    assert_eq!(wall.model.tangential_structure().columns().len(), 2);
+    assert!((wall.surface.normal[0] + 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn the_wall_says_what_it_leaves_out() {
+    let left = Scene::wall().left_out();
+    for term in [
+        "mass",
+        "ground spring k1",
+        "ground damper b1",
+        "coulomb friction",
+    ] {
+        assert!(
+            left.iter().any(|l| l == &format!("tangential: {term}")),
+            "{left:?}"
+        );
+    }
+    assert!(left.iter().any(|l| l.contains("moving cloud")));
+    assert_eq!(
+        Scene::exp1().left_out(),
+        vec![
+            "normal: mass",
+            "normal: ground spring k1",
+            "normal: ground damper b1",
+            "normal: coulomb friction",
+            "tangential: ground spring k1"
+        ]
+    );
+}
+
+fn with(replace: &str, by: &str) -> Result<Scene, SceneError> {
+    assert!(EXP1_TOML.contains(replace), "{replace}");
+    Scene::from_toml(&EXP1_TOML.replacen(replace, by, 1), "test.toml")
+}
+
+#[test]
+fn errors_name_the_field_the_value_and_the_range() {
+    let cases = [
+        (
+            "mass_kg = 1.0",
+            "mass_kg = -1.0",
+            "environment.mass_kg",
+            "-1.0",
+        ),
+        (
+            "k_contact_n_per_m = 500.0",
+            "k_contact_n_per_m = 0.0",
+            "environment.k_contact_n_per_m",
+            "0.0",
+        ),
+        (
+            "coulomb_friction_n = 0.05",
+            "coulomb_friction_n = 0.5",
+            "environment.coulomb_friction_n",
+            "0.5",
+        ),
+        (
+            "normal = [0.0, 0.0, 1.0]",
+            "normal = [0.0, 0.0, 0.0]",
+            "surface.normal",
+            "[0.0, 0.0, 0.0]",
+        ),
+        (
+            "spacing_m = 0.005",
+            "spacing_m = 0.02",
+            "cloud.spacing_m",
+            "0.02",
+        ),
+        (
+            "noise_m = 0.0005",
+            "noise_m = 0.003",
+            "cloud.noise_m",
+            "0.003",
+        ),
+        (
+            "filter_cutoff_hz = 5.0",
+            "filter_cutoff_hz = 500.0",
+            "model.filter_cutoff_hz",
+            "500.0",
+        ),
+        (
+            "forgetting = 0.9999",
+            "forgetting = 1.5",
+            "model.forgetting",
+            "1.5",
+        ),
+        ("r2_m = 0.005", "r2_m = 0.002", "proxy.r2_m", "0.002"),
+        (
+            "normal = \"kelvin-voigt\"",
+            "normal = \"sliding-mass\"",
+            "model.normal",
+            "SlidingMass",
+        ),
+    ];
+    for (from, to, name, value) in cases {
+        match with(from, to) {
+            Err(e @ SceneError::Field { .. }) => {
+                let msg = e.to_string();
+                assert!(msg.starts_with("test.toml: "), "{msg}");
+                assert!(
+                    msg.contains(name) && msg.contains(value) && msg.contains("expected"),
+                    "{msg}"
+                );
+            }
+            other => panic!("{from} -> {to}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn an_anchored_object_must_not_move() {
+    let e = Scene::from_toml(
+        &WALL_TOML.replacen("mass_kg = 0.0", "mass_kg = 1.0", 1),
+        "w.toml",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("environment.mass_kg = 1.0"), "{e}");
+}
+
+#[test]
+fn unknown_fields_and_bad_types_are_parse_errors() {
+    let e = with("mass_kg = 1.0", "mass_kg = 1.0\nmas_kg = 2.0").unwrap_err();
+    assert!(
+        matches!(e, SceneError::Parse { .. }) && e.to_string().contains("mas_kg"),
+        "{e}"
+    );
+    let e = with("mass_kg = 1.0", "mass_kg = \"heavy\"").unwrap_err();
+    assert!(e.to_string().contains("mass_kg"), "{e}");
+    let e = Scene::from_toml("this is not toml", "x.toml").unwrap_err();
+    assert!(e.to_string().starts_with("x.toml"), "{e}");
+}

@@ -1,0 +1,260 @@
+//! Field-by-field validation of a parsed scene.
+
+use super::{CloudKind, Scene, StructureName};
+use thiserror::Error;
+
+/// Why a scene was rejected.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SceneError {
+    /// Not TOML, or a field of the wrong type, or an unknown field.
+    #[error("{origin}: {message}")]
+    Parse {
+        /// File (or other source).
+        origin: String,
+        /// The parser's message (names the line and the key).
+        message: String,
+    },
+    /// A field out of range.
+    #[error("{origin}: {field} = {value} is out of range: expected {expected}")]
+    Field {
+        /// File (or other source).
+        origin: String,
+        /// Dotted field name.
+        field: &'static str,
+        /// The value, as written.
+        value: String,
+        /// The allowed range.
+        expected: &'static str,
+    },
+}
+
+impl SceneError {
+    pub(super) fn with_origin(self, origin: &str) -> SceneError {
+        match self {
+            SceneError::Field {
+                field,
+                value,
+                expected,
+                ..
+            } => SceneError::Field {
+                origin: origin.to_string(),
+                field,
+                value,
+                expected,
+            },
+            other => other,
+        }
+    }
+}
+
+fn field(
+    field: &'static str,
+    value: impl std::fmt::Debug,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), SceneError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(SceneError::Field {
+            origin: String::new(),
+            field,
+            value: format!("{value:?}"),
+            expected,
+        })
+    }
+}
+
+fn non_negative(name: &'static str, v: f64) -> Result<(), SceneError> {
+    field(name, v, v.is_finite() && v >= 0.0, "a finite number ≥ 0")
+}
+
+fn positive(name: &'static str, v: f64) -> Result<(), SceneError> {
+    field(name, v, v.is_finite() && v > 0.0, "a finite number > 0")
+}
+
+impl Scene {
+    pub(super) fn validate(&self) -> Result<(), SceneError> {
+        field(
+            "name",
+            &self.name,
+            !self.name.trim().is_empty(),
+            "a non-empty name",
+        )?;
+        let e = &self.environment;
+        non_negative("environment.mass_kg", e.mass_kg)?;
+        non_negative("environment.k_ground_n_per_m", e.k_ground_n_per_m)?;
+        non_negative("environment.b_ground_ns_per_m", e.b_ground_ns_per_m)?;
+        positive("environment.k_contact_n_per_m", e.k_contact_n_per_m)?;
+        non_negative("environment.b_contact_ns_per_m", e.b_contact_ns_per_m)?;
+        non_negative("environment.static_friction_n", e.static_friction_n)?;
+        non_negative("environment.coulomb_friction_n", e.coulomb_friction_n)?;
+        field(
+            "environment.coulomb_friction_n",
+            e.coulomb_friction_n,
+            e.coulomb_friction_n <= e.static_friction_n,
+            "≤ environment.static_friction_n (Karnopp: dynamic friction does not exceed static)",
+        )?;
+        non_negative(
+            "environment.stick_velocity_m_per_s",
+            e.stick_velocity_m_per_s,
+        )?;
+        if e.anchored {
+            for (name, v) in [
+                ("environment.mass_kg", e.mass_kg),
+                ("environment.k_ground_n_per_m", e.k_ground_n_per_m),
+                ("environment.b_ground_ns_per_m", e.b_ground_ns_per_m),
+                ("environment.static_friction_n", e.static_friction_n),
+                ("environment.coulomb_friction_n", e.coulomb_friction_n),
+            ] {
+                field(
+                    name,
+                    v,
+                    v == 0.0,
+                    "0 for an anchored object (it cannot move)",
+                )?;
+            }
+        } else {
+            positive("environment.mass_kg", e.mass_kg)?;
+            field(
+                "environment.b_ground_ns_per_m",
+                e.b_ground_ns_per_m,
+                e.b_ground_ns_per_m > 0.0 || e.k_ground_n_per_m > 0.0,
+                "> 0 when k_ground is 0 (an undamped free mass never settles)",
+            )?;
+        }
+        let s = &self.surface;
+        for v in s.point_m {
+            field(
+                "surface.point_m",
+                s.point_m,
+                v.is_finite(),
+                "three finite coordinates [m]",
+            )?;
+        }
+        let len = (s.normal.iter().map(|c| c * c).sum::<f64>()).sqrt();
+        field(
+            "surface.normal",
+            s.normal,
+            len.is_finite() && len > 1e-9,
+            "a non-zero finite vector",
+        )?;
+        let p = &self.proxy;
+        positive("proxy.r1_m", p.r1_m)?;
+        field(
+            "proxy.r2_m",
+            p.r2_m,
+            p.r2_m.is_finite() && p.r2_m > p.r1_m,
+            "> proxy.r1_m",
+        )?;
+        field(
+            "proxy.r3_m",
+            p.r3_m,
+            p.r3_m.is_finite() && p.r3_m > p.r2_m,
+            "> proxy.r2_m",
+        )?;
+        field(
+            "rates.control_hz",
+            self.rates.control_hz,
+            (100.0..=20_000.0).contains(&self.rates.control_hz),
+            "in [100, 20000] Hz",
+        )?;
+        let c = &self.cloud;
+        if c.source != CloudKind::None {
+            for v in c.size_m {
+                field(
+                    "cloud.size_m",
+                    c.size_m,
+                    v.is_finite() && v > 0.0 && v <= 100.0,
+                    "two sizes in (0, 100] m",
+                )?;
+            }
+            field(
+                "cloud.spacing_m",
+                c.spacing_m,
+                c.spacing_m.is_finite() && c.spacing_m >= 1e-4,
+                "≥ 0.1 mm",
+            )?;
+            let max_spacing = self
+                .proxy
+                .config(self.rates.control_hz)
+                .max_point_spacing_m();
+            field(
+                "cloud.spacing_m",
+                c.spacing_m,
+                c.spacing_m < max_spacing,
+                "below √2·(proxy.r1_m + proxy.r2_m)/2, or the proxy slips between points",
+            )?;
+            let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
+            field(
+                "cloud.spacing_m",
+                c.spacing_m,
+                points <= 5e6,
+                "at most 5 million points per frame",
+            )?;
+            non_negative("cloud.noise_m", c.noise_m)?;
+            field(
+                "cloud.noise_m",
+                c.noise_m,
+                c.noise_m <= (self.proxy.r2_m - self.proxy.r1_m) / 2.0,
+                "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy tolerates without punch-through",
+            )?;
+            field(
+                "cloud.dropout",
+                c.dropout,
+                (0.0..0.5).contains(&c.dropout),
+                "a fraction in [0, 0.5)",
+            )?;
+            field(
+                "cloud.rate_hz",
+                c.rate_hz,
+                c.rate_hz.is_finite() && c.rate_hz > 0.0 && c.rate_hz <= 1000.0,
+                "in (0, 1000] Hz",
+            )?;
+        }
+        let m = &self.model;
+        field(
+            "model.normal",
+            format!("{:?}", m.normal),
+            m.normal != StructureName::SlidingMass,
+            "free or kelvin-voigt (the table holds the object along the normal)",
+        )?;
+        if e.anchored {
+            field(
+                "model.tangential",
+                format!("{:?}", m.tangential),
+                m.tangential != StructureName::SlidingMass,
+                "free or kelvin-voigt for an anchored object",
+            )?;
+        }
+        if m.tangential != StructureName::SlidingMass {
+            field(
+                "model.ground_spring",
+                m.ground_spring,
+                !m.ground_spring,
+                "false unless tangential = \"sliding-mass\"",
+            )?;
+            field(
+                "model.friction",
+                m.friction,
+                !m.friction,
+                "false unless tangential = \"sliding-mass\"",
+            )?;
+        }
+        field(
+            "model.filter_cutoff_hz",
+            m.filter_cutoff_hz,
+            m.filter_cutoff_hz.is_finite()
+                && m.filter_cutoff_hz >= 0.5
+                && m.filter_cutoff_hz <= self.rates.control_hz / 10.0,
+            "in [0.5 Hz, control rate / 10]",
+        )?;
+        field(
+            "model.forgetting",
+            m.forgetting,
+            m.forgetting > 0.99 && m.forgetting <= 1.0,
+            "in (0.99, 1]",
+        )?;
+        Ok(())
+    }
+}
