@@ -28,6 +28,7 @@
 
 pub mod friction;
 pub mod noise;
+pub mod world;
 #[cfg(test)]
 mod tests;
 
