@@ -20,6 +20,8 @@ enum Command {
     /// Time the kd-tree build and the proxy step on a noisy plane (and the same steps by brute
     /// force).
     ContactBench(cli::contact_bench::Args),
+    /// Reproduce thesis experiments 1–3 in-process (exp1, exp2, exp3).
+    Experiment(cli::experiment::ExperimentArgs),
     /// Renderer frequency response against the exact |F/X|.
     Transfer(cli::transfer::TransferArgs),
     /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
@@ -33,6 +35,7 @@ enum Command {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::ContactBench(args) => cli::contact_bench::run(&args),
+        Command::Experiment(args) => cli::experiment::run_cmd(args),
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),
         Command::Stress(args) => cli::stress::run(args),

@@ -49,6 +49,48 @@ impl Pose {
         }
     }
 
+    /// The rotation as a unit quaternion `[x, y, z, w]` (Shepperd's method: the largest of the
+    /// four diagonal combinations is the pivot, so no division by a small number).
+    pub fn quaternion_xyzw(&self) -> [f64; 4] {
+        let r = &self.rotation;
+        let trace = r[0][0] + r[1][1] + r[2][2];
+        let q = if trace > r[0][0].max(r[1][1]).max(r[2][2]) {
+            let s = 2.0 * (1.0 + trace).sqrt();
+            [
+                (r[2][1] - r[1][2]) / s,
+                (r[0][2] - r[2][0]) / s,
+                (r[1][0] - r[0][1]) / s,
+                0.25 * s,
+            ]
+        } else if r[0][0] >= r[1][1] && r[0][0] >= r[2][2] {
+            let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
+            [
+                0.25 * s,
+                (r[0][1] + r[1][0]) / s,
+                (r[0][2] + r[2][0]) / s,
+                (r[2][1] - r[1][2]) / s,
+            ]
+        } else if r[1][1] >= r[2][2] {
+            let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
+            [
+                (r[0][1] + r[1][0]) / s,
+                0.25 * s,
+                (r[1][2] + r[2][1]) / s,
+                (r[0][2] - r[2][0]) / s,
+            ]
+        } else {
+            let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
+            [
+                (r[0][2] + r[2][0]) / s,
+                (r[1][2] + r[2][1]) / s,
+                0.25 * s,
+                (r[1][0] - r[0][1]) / s,
+            ]
+        };
+        let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+        q.map(|c| c / n)
+    }
+
     /// Rotation from a quaternion `w + xi + yj + zk` (normalised here), then translation.
     /// `None` when the quaternion has zero or non-finite norm.
     pub fn from_quaternion(wxyz: [f64; 4], translation_m: [f64; 3]) -> Option<Pose> {
@@ -148,6 +190,29 @@ fn axis_angle_matrix(axis: V3, angle: f64) -> [[f64; 3]; 3] {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn quaternion_round_trip() {
+        for rv in [
+            [0.0, 0.0, 0.0],
+            [0.3, -1.2, 0.7],
+            [3.1, 0.0, 0.0],
+            [0.0, -3.0, 0.1],
+            [0.0, 0.0, 3.14],
+        ] {
+            let p = super::Pose::from_rotation_vector(rv, [1.0, 2.0, 3.0]);
+            let [x, y, z, w] = p.quaternion_xyzw();
+            let back = super::Pose::from_quaternion([w, x, y, z], p.translation_m).unwrap();
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!(
+                        (back.rotation[i][j] - p.rotation[i][j]).abs() < 1e-12,
+                        "{rv:?}"
+                    );
+                }
+            }
+        }
+    }
+
     use super::*;
 
     fn close(a: [f64; 3], b: [f64; 3]) -> bool {

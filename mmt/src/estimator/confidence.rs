@@ -16,6 +16,11 @@ pub struct ConfidenceConfig {
     pub max_relative_change: f64,
     /// Largest smoothed relative prediction error of the RLS. Default 0.10.
     pub max_prediction_error: f64,
+    /// Once confident, the spread and error may grow to this multiple of the entry thresholds
+    /// before a set is withheld; confidence is lost only when every back-solve of a whole window
+    /// fails (a gate or these looser thresholds). Default 3: the filters' switching transient
+    /// after a re-contact must not revoke a model that has not changed.
+    pub exit_factor: f64,
 }
 
 impl Default for ConfidenceConfig {
@@ -24,6 +29,7 @@ impl Default for ConfidenceConfig {
             window_s: 0.25,
             max_relative_change: 0.10,
             max_prediction_error: 0.10,
+            exit_factor: 3.0,
         }
     }
 }
@@ -34,6 +40,7 @@ impl ConfidenceConfig {
             ("confidence.window_s", self.window_s),
             ("confidence.max_relative_change", self.max_relative_change),
             ("confidence.max_prediction_error", self.max_prediction_error),
+            ("confidence.exit_factor", self.exit_factor),
         ];
         for (field, value) in checks {
             if !(value.is_finite() && value > 0.0) {
@@ -61,6 +68,8 @@ pub(super) struct Confidence {
     head: usize,
     needed: usize,
     confident: bool,
+    /// Consecutive back-solves that failed while confident.
+    fail_streak: usize,
 }
 
 impl Confidence {
@@ -73,19 +82,41 @@ impl Confidence {
             head: 0,
             needed,
             confident: false,
+            fail_streak: 0,
         }
     }
 
+    /// Forgets everything (a new object).
     pub(super) fn clear(&mut self) {
         self.len = 0;
         self.confident = false;
+        self.fail_streak = 0;
+    }
+
+    /// A back-solve failed a gate. Before confidence this restarts the window; once confident it
+    /// counts towards losing it.
+    pub(super) fn reject(&mut self) {
+        if self.confident {
+            self.fail(true);
+        } else {
+            self.len = 0;
+        }
+    }
+
+    fn fail(&mut self, count: bool) {
+        if count {
+            self.fail_streak += 1;
+        }
+        if self.fail_streak >= self.needed {
+            self.clear();
+        }
     }
 
     pub(super) fn is_confident(&self) -> bool {
         self.confident
     }
 
-    /// Adds a gate-passing set; returns whether the gate passes now.
+    /// Adds a gate-passing set; returns whether it may be published (the gate passes).
     pub(super) fn push(&mut self, now_s: f64, g: &Gated, relative_error: Option<f64>) -> bool {
         let key = match g.params() {
             Params::SlidingMass(p) => [
@@ -100,13 +131,25 @@ impl Confidence {
         self.ring[self.head] = (now_s, key);
         self.head = (self.head + 1) % CAPACITY;
         self.len = (self.len + 1).min(CAPACITY);
-        self.confident = self.len >= self.needed
-            && self.still()
-            && relative_error.is_some_and(|e| e <= self.config.max_prediction_error);
+        let c = &self.config;
+        let within = |factor: f64| {
+            self.len >= self.needed
+                && self.still(c.max_relative_change * factor)
+                && relative_error.is_some_and(|e| e <= c.max_prediction_error * factor)
+        };
+        if self.confident {
+            if within(c.exit_factor) {
+                self.fail_streak = 0;
+                return true;
+            }
+            self.fail(true);
+            return false;
+        }
+        self.confident = within(1.0);
         self.confident
     }
 
-    fn still(&self) -> bool {
+    fn still(&self, max_change: f64) -> bool {
         let window = self.needed;
         let mut lo = [f64::INFINITY; 4];
         let mut hi = [f64::NEG_INFINITY; 4];
@@ -118,6 +161,6 @@ impl Confidence {
             }
         }
         // Relative to the largest value; a parameter that stays exactly 0 is still.
-        (0..4).all(|j| hi[j] - lo[j] <= self.config.max_relative_change * hi[j].abs())
+        (0..4).all(|j| hi[j] - lo[j] <= max_change * hi[j].abs())
     }
 }

@@ -366,7 +366,7 @@ impl Estimator {
             }
             Err(e) => {
                 self.stats.gate_rejections += 1;
-                self.confidence.clear();
+                self.confidence.reject();
                 update.rejection = Some(e);
             }
         }

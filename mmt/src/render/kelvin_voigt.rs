@@ -100,3 +100,111 @@ impl KelvinVoigtRenderer {
         self.stats
     }
 }
+
+/// A Kelvin–Voigt element anchored where contact began, bilateral: the tangential axes of an
+/// object that does not move (a wall holding the tool in its compliant surface). The anchor is
+/// placed so the force starts at 0 (`k (x − a) + b ẋ = 0` at onset), the same convention as the
+/// sliding-mass renderer and the simulator.
+#[derive(Clone, Debug)]
+pub struct ShearRenderer {
+    inner: KelvinVoigtRenderer,
+    anchor_m: f64,
+    in_contact: bool,
+}
+
+/// The part of a [`ShearRenderer`] needed to rewind it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShearState {
+    /// Anchor [m].
+    pub anchor_m: f64,
+    /// Whether the last tick was in contact.
+    pub in_contact: bool,
+}
+
+impl ShearRenderer {
+    /// A renderer with no parameters yet.
+    pub fn new(config: RendererConfig) -> Result<Self, ConfigError> {
+        Ok(ShearRenderer {
+            inner: KelvinVoigtRenderer::new(config)?,
+            anchor_m: 0.0,
+            in_contact: false,
+        })
+    }
+
+    /// Sets the parameters to smooth towards; `false` (ignored) if not Kelvin–Voigt.
+    pub fn set_target(&mut self, params: &Gated) -> bool {
+        self.inner.set_target(params)
+    }
+
+    /// Whether a parameter set was given.
+    pub fn has_target(&self) -> bool {
+        self.inner.target.is_some()
+    }
+
+    /// One tick: position [m] and velocity [m/s] along the axis. Returns the force on the tool
+    /// along the axis [N].
+    pub fn step(&mut self, x: f64, v: f64, in_contact: bool) -> f64 {
+        if !(x.is_finite() && v.is_finite()) {
+            return self.inner.step(f64::NAN, 0.0, false);
+        }
+        if in_contact && !self.in_contact {
+            let kv = self.inner.current.or(self.inner.target);
+            self.anchor_m = x + kv.map_or(0.0, |kv| {
+                if kv.k_n_per_m > 0.0 {
+                    kv.b_ns_per_m * v / kv.k_n_per_m
+                } else {
+                    0.0
+                }
+            });
+        }
+        self.in_contact = in_contact;
+        // The inner renderer is unilateral along its axis; run it on the magnitude and restore
+        // the sign: F = −(k δ + b ẋ).
+        let d = x - self.anchor_m;
+        let along = self.inner.step_bilateral(d, v, in_contact);
+        -along
+    }
+
+    /// The rewind state.
+    pub fn snapshot(&self) -> ShearState {
+        ShearState {
+            anchor_m: self.anchor_m,
+            in_contact: self.in_contact,
+        }
+    }
+
+    /// Restores a state from [`Self::snapshot`].
+    pub fn restore(&mut self, s: ShearState) {
+        self.anchor_m = s.anchor_m;
+        self.in_contact = s.in_contact;
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> RendererStats {
+        self.inner.stats()
+    }
+}
+
+impl KelvinVoigtRenderer {
+    /// `k d + b ḋ` (either sign) with smoothing and Colgate's clip, 0 out of contact.
+    fn step_bilateral(&mut self, d: f64, rate: f64, in_contact: bool) -> f64 {
+        self.stats.ticks += 1;
+        let Some(target) = self.target else {
+            return 0.0;
+        };
+        let current = match self.current {
+            None => target,
+            Some(c) => KelvinVoigt {
+                k_n_per_m: smooth(c.k_n_per_m, target.k_n_per_m, self.alpha),
+                b_ns_per_m: smooth(c.b_ns_per_m, target.b_ns_per_m, self.alpha),
+            },
+        };
+        self.current = Some(current);
+        let (k, b) = self.config.colgate(current.k_n_per_m, current.b_ns_per_m);
+        if !in_contact {
+            return 0.0;
+        }
+        let f = k * d + b * rate;
+        if f.is_finite() { f } else { 0.0 }
+    }
+}

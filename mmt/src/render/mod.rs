@@ -19,7 +19,7 @@ mod kelvin_voigt;
 pub mod reference;
 mod sliding;
 
-pub use kelvin_voigt::KelvinVoigtRenderer;
+pub use kelvin_voigt::{KelvinVoigtRenderer, ShearRenderer, ShearState};
 pub use sliding::{SlidingMassRenderer, SlidingState};
 
 use serde::{Deserialize, Serialize};

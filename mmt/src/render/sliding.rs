@@ -80,8 +80,14 @@ impl SlidingMassRenderer {
             return 0.0;
         }
         let Some(target) = self.target else {
-            self.state.in_contact = in_contact;
-            self.state.last_input = [x - self.state.anchor_m, v];
+            // No model yet: keep the contact bookkeeping so a later replay from this state starts
+            // consistent (spring unloaded at onset, object at rest).
+            let s = &mut self.state;
+            if in_contact && !s.in_contact {
+                s.anchor_m = x - s.mass_position_m;
+            }
+            s.in_contact = in_contact;
+            s.last_input = [x - s.anchor_m, v];
             return 0.0;
         };
         let current = match self.state.current {

@@ -2,3 +2,4 @@
 //! the files).
 
 pub mod plot;
+pub mod spectrum;

@@ -35,7 +35,7 @@
 //! [proxy]
 //! r1_m = 0.003
 //! r2_m = 0.005
-//! r3_m = 0.015
+//! r3_m = 0.03
 //! [sensors]
 //! preset = "franka-like"      # franka-like | clean
 //! ```
@@ -257,7 +257,7 @@ impl Default for ProxySection {
         ProxySection {
             r1_m: 0.003,
             r2_m: 0.005,
-            r3_m: 0.015,
+            r3_m: 0.03,
         }
     }
 }

@@ -28,9 +28,9 @@
 
 pub mod friction;
 pub mod noise;
-pub mod world;
 #[cfg(test)]
 mod tests;
+pub mod world;
 
 use nalgebra::DMatrix;
 use rand_pcg::Pcg64;

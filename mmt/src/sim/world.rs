@@ -83,7 +83,8 @@ impl World {
         let env = scene.environment;
         let noise = scene.sensors.noise();
         let local = to_local(&frame, origin, tool_m);
-        let rng = |k: u64| Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k));
+        let rng =
+            |k: u64| Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k));
         let axis = |i: usize| -> Result<Tangential, SimError> {
             if env.anchored {
                 return Ok(Tangential::Anchored {
@@ -103,7 +104,12 @@ impl World {
                 noise,
                 ..SimConfig::THESIS_EXP1
             };
-            Ok(Tangential::Sliding(Box::new(SlidingObjectSim::new(config, local[i], 0.0, rng(i as u64 + 1))?)))
+            Ok(Tangential::Sliding(Box::new(SlidingObjectSim::new(
+                config,
+                local[i],
+                0.0,
+                rng(i as u64 + 1),
+            )?)))
         };
         Ok(World {
             origin,
@@ -125,7 +131,11 @@ impl World {
         ];
         let penetration = -x[2];
         let in_contact = penetration > 0.0;
-        let f_n = if in_contact { (self.k_n * penetration - self.b_n * v[2]).max(0.0) } else { 0.0 };
+        let f_n = if in_contact {
+            (self.k_n * penetration - self.b_n * v[2]).max(0.0)
+        } else {
+            0.0
+        };
         let mut measured_local = [Measurement::default(); 3];
         let mut truth_local = [Measurement::default(); 3];
         let mut out = WorldSample {
@@ -139,27 +149,49 @@ impl World {
                     // F_op = k2 δ + b2 (ẋ − ẋ_m)  ⇒  δ.
                     let o = sim.config().object;
                     let delta = if in_contact && o.k_contact_n_per_m > 0.0 {
-                        (force_on_tool(s.truth.force_n) - o.b_contact_ns_per_m * (v[i] - s.mass_velocity_m_per_s))
+                        (force_on_tool(s.truth.force_n)
+                            - o.b_contact_ns_per_m * (v[i] - s.mass_velocity_m_per_s))
                             / o.k_contact_n_per_m
                     } else {
                         0.0
                     };
-                    (s.measured, s.truth, s.mass_position_m, (delta, s.mass_velocity_m_per_s))
+                    (
+                        s.measured,
+                        s.truth,
+                        s.mass_position_m,
+                        (delta, s.mass_velocity_m_per_s),
+                    )
                 }
-                Tangential::Anchored { k, b, rest_m, last, in_contact: was, sensors } => {
+                Tangential::Anchored {
+                    k,
+                    b,
+                    rest_m,
+                    last,
+                    in_contact: was,
+                    sensors,
+                } => {
                     if in_contact && !*was {
                         // Onset: the anchor is placed so the force starts at exactly 0.
                         *rest_m = last[0] + if *k > 0.0 { *b * last[1] / *k } else { 0.0 };
                     }
                     *was = in_contact;
                     *last = [x[i], v[i]];
-                    let f = if in_contact { force_on_tool(*k * (x[i] - *rest_m) + *b * v[i]) } else { 0.0 };
+                    let f = if in_contact {
+                        force_on_tool(*k * (x[i] - *rest_m) + *b * v[i])
+                    } else {
+                        0.0
+                    };
                     let truth = Measurement {
                         position_m: x[i],
                         velocity_m_per_s: v[i],
                         force_n: f,
                     };
-                    (sensors.measure(truth), truth, 0.0, (if in_contact { x[i] - *rest_m } else { 0.0 }, 0.0))
+                    (
+                        sensors.measure(truth),
+                        truth,
+                        0.0,
+                        (if in_contact { x[i] - *rest_m } else { 0.0 }, 0.0),
+                    )
                 }
             };
             measured_local[i] = m;
@@ -192,7 +224,9 @@ impl World {
     fn to_world(&self, local: &[Measurement; 3]) -> Sample3 {
         let axes = [self.frame.tangent1, self.frame.tangent2, self.frame.normal];
         let combine = |get: &dyn Fn(&Measurement) -> f64, offset: [f64; 3]| {
-            (0..3).fold(offset, |acc, i| vec3::add(acc, vec3::scale(axes[i], get(&local[i]))))
+            (0..3).fold(offset, |acc, i| {
+                vec3::add(acc, vec3::scale(axes[i], get(&local[i])))
+            })
         };
         Sample3 {
             position_m: combine(&|m| m.position_m, self.origin),
@@ -205,5 +239,9 @@ impl World {
 /// Position in the surface frame: `[(x − p0)·t1, (x − p0)·t2, (x − p0)·n]`.
 pub fn to_local(frame: &SurfaceFrame, origin: [f64; 3], x: [f64; 3]) -> [f64; 3] {
     let d = vec3::sub(x, origin);
-    [vec3::dot(d, frame.tangent1), vec3::dot(d, frame.tangent2), vec3::dot(d, frame.normal)]
+    [
+        vec3::dot(d, frame.tangent1),
+        vec3::dot(d, frame.tangent2),
+        vec3::dot(d, frame.normal),
+    ]
 }

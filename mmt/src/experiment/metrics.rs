@@ -1,0 +1,500 @@
+//! What an experiment records and what the report computes from it.
+
+use super::ExperimentConfig;
+use crate::model::backsolve::Params;
+use crate::node::operator::{OperatorNode, OperatorOutput, OperatorStats};
+use crate::node::telerobot::{TelerobotNode, TelerobotStats};
+use crate::report::spectrum::band_rms;
+use crate::vec3;
+use serde::Serialize;
+
+/// The time series of a run, indexed by operator tick (= command sample time / period).
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    /// Tick period [ns].
+    pub period_ns: i64,
+    /// The scene's second tangent: the thesis's "y" axis, for plots.
+    pub axis: [f64; 3],
+    /// Device position [m].
+    pub position: Vec<[f64; 3]>,
+    /// Force rendered by the operator node [N].
+    pub rendered: Vec<[f64; 3]>,
+    /// Force rendered by the shadow node (remote contact only) [N].
+    pub rendered_remote: Vec<[f64; 3]>,
+    /// Operator in contact (local detection).
+    pub contact_local: Vec<bool>,
+    /// Shadow node in contact (the telerobot's state).
+    pub contact_remote: Vec<bool>,
+    /// The operator renders a model.
+    pub rendering: Vec<bool>,
+    /// Operator's contact deflection and mass velocity per tangent (sliding mass only).
+    pub operator_state: Vec<[Option<(f64, f64)>; 2]>,
+    /// True force on the tool while executing the command of this tick [N].
+    pub measured: Vec<Option<[f64; 3]>>,
+    /// True contact while executing the command of this tick.
+    pub contact_true: Vec<Option<bool>>,
+    /// True contact deflection and mass velocity per tangent, same alignment.
+    pub true_state: Vec<Option<[(f64, f64); 2]>>,
+    /// Telerobot's parameters pass every gate (by telerobot tick).
+    pub stable: Vec<bool>,
+    /// Σ y² and Σ (y − ψᵀθ̂)² of the tangential estimator while confident.
+    pub reconstruction: (f64, f64),
+}
+
+impl Series {
+    pub(super) fn with_capacity(n: usize, axis: [f64; 3], period_ns: i64) -> Self {
+        Series {
+            period_ns,
+            axis,
+            position: Vec::with_capacity(n),
+            rendered: Vec::with_capacity(n),
+            rendered_remote: Vec::with_capacity(n),
+            contact_local: Vec::with_capacity(n),
+            contact_remote: Vec::with_capacity(n),
+            rendering: Vec::with_capacity(n),
+            operator_state: Vec::with_capacity(n),
+            measured: vec![None; n],
+            contact_true: vec![None; n],
+            true_state: vec![None; n],
+            stable: Vec::with_capacity(n),
+            reconstruction: (0.0, 0.0),
+        }
+    }
+
+    pub(super) fn push_operator(
+        &mut self,
+        _now: i64,
+        position: [f64; 3],
+        out: &OperatorOutput,
+        remote: &OperatorOutput,
+    ) {
+        self.position.push(position);
+        self.rendered.push(out.force_n);
+        self.rendered_remote.push(remote.force_n);
+        self.contact_local.push(out.in_contact);
+        self.contact_remote.push(remote.in_contact);
+        self.rendering.push(out.rendering);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn push_telerobot(
+        &mut self,
+        command_time_ns: i64,
+        force: [f64; 3],
+        in_contact: bool,
+        stable: bool,
+        reconstruction: Option<(f64, f64)>,
+        true_state: [(f64, f64); 2],
+        operator_state: [Option<(f64, f64)>; 2],
+    ) {
+        self.stable.push(stable);
+        self.operator_state.push(operator_state);
+        if let Some((y2, e2)) = reconstruction {
+            self.reconstruction.0 += y2;
+            self.reconstruction.1 += e2;
+        }
+        let idx = command_time_ns / self.period_ns;
+        if command_time_ns < 0 || idx as usize >= self.measured.len() {
+            return;
+        }
+        let i = idx as usize;
+        if self.measured[i].is_none() {
+            self.measured[i] = Some(force);
+            self.contact_true[i] = Some(in_contact);
+            self.true_state[i] = Some(true_state);
+        }
+    }
+
+    /// Tick period [s].
+    pub fn dt_s(&self) -> f64 {
+        self.period_ns as f64 * 1e-9
+    }
+
+    /// Number of operator ticks.
+    pub fn len(&self) -> usize {
+        self.rendered.len()
+    }
+
+    /// No ticks.
+    pub fn is_empty(&self) -> bool {
+        self.rendered.is_empty()
+    }
+}
+
+/// One frequency band of the error.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Band {
+    /// Lower edge [Hz].
+    pub lo_hz: f64,
+    /// Upper edge [Hz].
+    pub hi_hz: f64,
+    /// RMS error in the band, % of the RMS measured force in the band.
+    pub rms_error_pct: f64,
+}
+
+/// Delay between a true contact change and the rendered one, on the command time axis [ms].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ContactLatency {
+    /// Operator-side detection on the delayed cloud: mean |latency|.
+    pub local: Option<f64>,
+    /// The telerobot's contact state only (the thesis): mean latency.
+    pub remote_only: Option<f64>,
+    /// Worst |latency| of local detection.
+    pub local_max: Option<f64>,
+    /// True contact changes counted.
+    pub switches: usize,
+}
+
+/// An error value over a window.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Window {
+    /// Window start [s].
+    pub t_s: f64,
+    /// RMS error, % of the RMS measured force; `None` out of contact.
+    pub rms_error_pct: Option<f64>,
+}
+
+/// Estimated against true parameters.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ParameterReport {
+    /// Axis group.
+    pub axes: &'static str,
+    /// `(name, true, estimated, error %)`.
+    pub values: Vec<(String, f64, f64, f64)>,
+}
+
+/// The thesis's figures, for the same table.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ThesisFigures {
+    /// Exp 1/3 error below 0.3 Hz [%] ("up to 30 %").
+    pub rms_error_low_freq_pct: f64,
+    /// Exp 1/3 error above 0.3 Hz [%] ("up to 100 %").
+    pub rms_error_high_freq_pct: f64,
+    /// Exp 2 reconstruction error [%].
+    pub reconstruction_error_pct: f64,
+    /// Exp 2 time to stable parameters [s].
+    pub time_to_stable_s: f64,
+    /// Exp 3 contact-switch latency: one round trip [ms].
+    pub contact_switch_latency_ms: f64,
+}
+
+/// The report of one run. Everything here is a function of the configuration and the seed:
+/// the same seed gives the same bytes (wall-clock time is reported separately by the caller).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ExperimentReport {
+    /// Experiment name.
+    pub experiment: &'static str,
+    /// Scene name.
+    pub scene: String,
+    /// Trajectory name.
+    pub trajectory: String,
+    /// Seed.
+    pub seed: u64,
+    /// One-way delay [ms].
+    pub delay_ms: f64,
+    /// RMS error of the rendered force from the first contact to the end, % of the RMS measured
+    /// force (force vectors, world frame).
+    pub rms_error_pct: Option<f64>,
+    /// The same from the time the first parameters reach the operator.
+    pub rms_error_pct_after_stable: Option<f64>,
+    /// The same on the scene's second tangent only (the thesis's y axis).
+    pub tangential_rms_error_pct_after_stable: Option<f64>,
+    /// After stable, per band.
+    pub bands: Vec<Band>,
+    /// The shadow node's error after stable: contact from the telerobot's state only.
+    pub rms_error_pct_remote_contact: Option<f64>,
+    /// 1 s windows.
+    pub error_over_time: Vec<Window>,
+    /// From the first contact until the parameters pass every gate and keep passing [s].
+    pub time_to_stable_s: Option<f64>,
+    /// From the first contact until the operator renders a model [s].
+    pub render_start_s: Option<f64>,
+    /// The tangential estimator's a-priori reconstruction error while confident [%].
+    pub reconstruction_error_pct: Option<f64>,
+    /// Contact-switch latency.
+    pub contact_switch_latency_ms: ContactLatency,
+    /// Operator contact deflection vs truth: RMS difference in contact [m] (sliding mass).
+    pub deflection_rms_error_m: Option<f64>,
+    /// Parameters.
+    pub parameters: Vec<ParameterReport>,
+    /// Terms the scene's model leaves out.
+    pub left_out: Vec<String>,
+    /// Simulated time [s].
+    pub sim_seconds: f64,
+    /// The thesis's figures.
+    pub thesis: ThesisFigures,
+    /// Operator node counters.
+    pub operator_stats: OperatorStats,
+    /// Shadow node counters.
+    pub shadow_stats: OperatorStats,
+    /// Telerobot node counters.
+    pub telerobot_stats: TelerobotStats,
+}
+
+/// The bands of the report [Hz].
+pub const BANDS: [(f64, f64); 3] = [(0.0, 0.3), (0.3, 1.0), (1.0, 4.0)];
+
+/// Computes the report of a run.
+pub fn analyse(
+    config: &ExperimentConfig,
+    s: &Series,
+    telerobot: &TelerobotNode,
+    operator: &OperatorNode,
+    shadow: &OperatorNode,
+) -> ExperimentReport {
+    let dt = s.dt_s();
+    let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
+    let render_start = s.rendering.iter().position(|r| *r);
+    let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
+    let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| -> Option<f64> {
+        let (mut e2, mut m2) = (0.0, 0.0);
+        for i in from..s.len() {
+            let Some(m) = s.measured[i] else { continue };
+            let e = vec3::sub(rendered[i], m);
+            match proj {
+                Some(a) => {
+                    e2 += vec3::dot(e, a).powi(2);
+                    m2 += vec3::dot(m, a).powi(2);
+                }
+                None => {
+                    e2 += vec3::norm2(e);
+                    m2 += vec3::norm2(m);
+                }
+            }
+        }
+        (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
+    };
+    let after = render_start.unwrap_or(s.len());
+    let bands = BANDS
+        .iter()
+        .map(|&(lo, hi)| {
+            let (mut e2, mut m2) = (0.0, 0.0);
+            for c in 0..3 {
+                let err: Vec<f64> = (after..s.len())
+                    .map(|i| s.rendered[i][c] - measured(i)[c])
+                    .collect();
+                let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
+                e2 += band_rms(&err, dt, lo, hi).powi(2);
+                m2 += band_rms(&meas, dt, lo, hi).powi(2);
+            }
+            Band {
+                lo_hz: lo,
+                hi_hz: hi,
+                rms_error_pct: if m2 > 0.0 {
+                    100.0 * (e2 / m2).sqrt()
+                } else {
+                    0.0
+                },
+            }
+        })
+        .collect();
+    let per_window = (1.0 / dt).round() as usize;
+    let error_over_time = (0..s.len())
+        .step_by(per_window)
+        .map(|start| {
+            let end = (start + per_window).min(s.len());
+            let (mut e2, mut m2, mut n) = (0.0, 0.0, 0);
+            for i in start..end {
+                if let Some(m) = s.measured[i] {
+                    e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
+                    m2 += vec3::norm2(m);
+                    n += 1;
+                }
+            }
+            let rms_m = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };
+            Window {
+                t_s: start as f64 * dt,
+                rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
+            }
+        })
+        .collect();
+    let stable_from = s.stable.iter().rposition(|st| !st).map_or(0, |i| i + 1);
+    let time_to_stable_s = match first_contact {
+        Some(fc) if stable_from < s.stable.len() => Some((stable_from.max(fc) - fc) as f64 * dt),
+        _ => None,
+    };
+    ExperimentReport {
+        experiment: config.kind.name(),
+        scene: config.scene.name.clone(),
+        trajectory: config.trajectory.clone(),
+        seed: config.seed,
+        delay_ms: config.delay_ms,
+        rms_error_pct: first_contact.and_then(|fc| rms_pct(fc, &s.rendered, None)),
+        rms_error_pct_after_stable: rms_pct(after, &s.rendered, None),
+        tangential_rms_error_pct_after_stable: rms_pct(after, &s.rendered, Some(s.axis)),
+        bands,
+        rms_error_pct_remote_contact: rms_pct(after, &s.rendered_remote, None),
+        error_over_time,
+        time_to_stable_s,
+        render_start_s: match (first_contact, render_start) {
+            (Some(fc), Some(rs)) => Some(rs.saturating_sub(fc) as f64 * dt),
+            _ => None,
+        },
+        reconstruction_error_pct: (s.reconstruction.0 > 0.0)
+            .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
+        contact_switch_latency_ms: latency(s),
+        deflection_rms_error_m: deflection_error(s),
+        parameters: parameters(config, telerobot),
+        left_out: config.scene.left_out(),
+        sim_seconds: s.len() as f64 * dt,
+        thesis: ThesisFigures {
+            rms_error_low_freq_pct: 30.0,
+            rms_error_high_freq_pct: 100.0,
+            reconstruction_error_pct: 5.0,
+            time_to_stable_s: 16.1,
+            contact_switch_latency_ms: 2.0 * config.delay_ms,
+        },
+        operator_stats: operator.stats(),
+        shadow_stats: shadow.stats(),
+        telerobot_stats: telerobot.stats(),
+    }
+}
+
+/// Transition times (tick index, new state) of a boolean series.
+fn transitions(v: impl Iterator<Item = Option<bool>>) -> Vec<(usize, bool)> {
+    let mut out = Vec::new();
+    let mut last: Option<bool> = None;
+    for (i, c) in v.enumerate() {
+        let Some(c) = c else { continue };
+        if last.is_some_and(|l| l != c) {
+            out.push((i, c));
+        }
+        last = Some(c);
+    }
+    out
+}
+
+fn latency(s: &Series) -> ContactLatency {
+    let dt_ms = s.dt_s() * 1e3;
+    let truth = transitions(s.contact_true.iter().copied());
+    let local = transitions(s.contact_local.iter().map(|c| Some(*c)));
+    let remote = transitions(s.contact_remote.iter().map(|c| Some(*c)));
+    // The nearest change of the same polarity within 3 s.
+    let match_each = |candidates: &[(usize, bool)]| -> Vec<f64> {
+        truth
+            .iter()
+            .filter_map(|&(t, state)| {
+                candidates
+                    .iter()
+                    .filter(|(_, c)| *c == state)
+                    .map(|&(i, _)| (i as f64 - t as f64) * dt_ms)
+                    .filter(|d| d.abs() <= 3000.0)
+                    .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+            })
+            .collect()
+    };
+    let l = match_each(&local);
+    let r = match_each(&remote);
+    let mean = |v: &[f64], abs: bool| {
+        (!v.is_empty()).then(|| {
+            v.iter()
+                .map(|x| if abs { x.abs() } else { *x })
+                .sum::<f64>()
+                / v.len() as f64
+        })
+    };
+    ContactLatency {
+        local: mean(&l, true),
+        remote_only: mean(&r, false),
+        local_max: l.iter().map(|x| x.abs()).reduce(f64::max),
+        switches: truth.len(),
+    }
+}
+
+fn deflection_error(s: &Series) -> Option<f64> {
+    let (mut e2, mut n) = (0.0, 0usize);
+    for (i, op) in s.operator_state.iter().enumerate() {
+        let (Some(Some(truth)), Some(Some(true))) = (s.true_state.get(i), s.contact_true.get(i))
+        else {
+            continue;
+        };
+        if !s.contact_local.get(i).copied().unwrap_or(false)
+            || !s.rendering.get(i).copied().unwrap_or(false)
+        {
+            continue;
+        }
+        for (axis, t) in op.iter().zip(truth) {
+            if let Some((d, _)) = axis {
+                e2 += (d - t.0).powi(2);
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (e2 / n as f64).sqrt())
+}
+
+fn parameters(config: &ExperimentConfig, telerobot: &TelerobotNode) -> Vec<ParameterReport> {
+    let env = config.scene.environment;
+    let rel = |est: f64, truth: f64| {
+        if truth != 0.0 {
+            100.0 * (est - truth) / truth
+        } else {
+            f64::NAN
+        }
+    };
+    let row = |name: &str, truth: f64, est: f64| (name.to_string(), truth, est, rel(est, truth));
+    let mut out = Vec::new();
+    for (axes, est) in [
+        ("normal", telerobot.normal_estimator()),
+        ("tangential", telerobot.tangential_estimator()),
+    ] {
+        let Some(latest) = est.and_then(|e| e.latest()) else {
+            continue;
+        };
+        let values = match latest.params() {
+            Params::KelvinVoigt(kv) => vec![
+                row("k", env.k_contact_n_per_m, kv.k_n_per_m),
+                row("b", env.b_contact_ns_per_m, kv.b_ns_per_m),
+            ],
+            Params::SlidingMass(p) => vec![
+                row("m", env.mass_kg, p.mass_kg),
+                row("k1", env.k_ground_n_per_m, p.k_ground_n_per_m),
+                row("b1", env.b_ground_ns_per_m, p.b_ground_ns_per_m),
+                row("k2", env.k_contact_n_per_m, p.k_contact_n_per_m),
+                row("b2", env.b_contact_ns_per_m, p.b_contact_ns_per_m),
+                row("Fc", env.coulomb_friction_n, p.coulomb_n),
+            ],
+            Params::Free => vec![],
+        };
+        out.push(ParameterReport { axes, values });
+    }
+    out
+}
+
+impl Series {
+    /// The series as CSV: one row per operator tick.
+    pub fn to_csv(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::with_capacity(self.len() * 200);
+        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering\n");
+        let b = |v: bool| if v { 1 } else { 0 };
+        for i in 0..self.len() {
+            let p = self.position[i];
+            let m = self.measured[i].map_or([f64::NAN; 3], |m| m);
+            let r = self.rendered[i];
+            let q = self.rendered_remote[i];
+            let _ = writeln!(
+                out,
+                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{}",
+                i as f64 * self.dt_s(),
+                p[0],
+                p[1],
+                p[2],
+                m[0],
+                m[1],
+                m[2],
+                r[0],
+                r[1],
+                r[2],
+                q[0],
+                q[1],
+                q[2],
+                self.contact_true[i].map_or(-1, |c| b(c) as i32),
+                b(self.contact_local[i]),
+                b(self.contact_remote[i]),
+                b(self.rendering[i]),
+            );
+        }
+        out
+    }
+}

@@ -1,0 +1,216 @@
+//! The tick loop of the harness.
+
+use super::metrics::{Series, analyse};
+use super::{ExperimentConfig, ExperimentError, ExperimentReport};
+use crate::cloud::synthetic::{SceneObject, Shape, SyntheticCloud};
+use crate::cloud::{CloudFrame, Pose};
+use crate::model::col;
+use crate::node::NodeSettings;
+use crate::node::operator::{OperatorConfig, OperatorNode};
+use crate::node::telerobot::{CommandSample, TelerobotNode};
+use crate::scene::CloudKind;
+use crate::sim::world::World;
+use crate::trajectory::{Trajectory, by_name};
+use crate::vec3;
+use netem::{Channel, LinkConfig};
+use protocol::{operator_to_telerobot as up, telerobot_to_operator as down};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+/// Runs an experiment; `progress(fraction)` is called about a hundred times. Returns the time
+/// series and the report (everything but wall-clock time, which the caller measures).
+pub fn run(
+    config: &ExperimentConfig,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Series, ExperimentReport), ExperimentError> {
+    config.validate()?;
+    let scene = &config.scene;
+    let settings = NodeSettings::from_scene(scene);
+    let period = settings.period_ns;
+    let trajectory = by_name(
+        &config.trajectory,
+        config.seconds,
+        scene.surface.point_m,
+        scene.surface.normal,
+    )?;
+    let start = trajectory.sample(0.0).position_m;
+    let mut world = World::new(scene, start, config.seed)?;
+    let mut telerobot = TelerobotNode::new(settings.clone(), start)?;
+    let mut operator = OperatorNode::new(settings.clone(), config.operator, start)?;
+    let shadow_config = OperatorConfig {
+        local_contact: false,
+        ..config.operator
+    };
+    let mut shadow = OperatorNode::new(settings.clone(), shadow_config, start)?;
+    let link = |seed_offset: u64| {
+        let ms = 1_000_000.0;
+        let mut c = LinkConfig::delay((config.delay_ms * ms).round() as u64);
+        c.jitter_ns = (config.jitter_ms * ms).round() as u64;
+        if config.loss > 0.0 {
+            c.loss = netem::Loss::Random {
+                probability: config.loss,
+            };
+        }
+        Channel::<Vec<u8>>::new(c, config.seed.wrapping_add(seed_offset))
+            .map_err(|e| ExperimentError::Link(e.to_string()))
+    };
+    let mut uplink = link(101)?;
+    let mut downlink = link(202)?;
+    let mut camera = Camera::new(config);
+    let ticks = (config.seconds * 1e9 / period as f64).round() as usize;
+    let mut series = Series::with_capacity(ticks, world.frame().tangent2, period);
+    let mut buf = Vec::with_capacity(1500);
+    let mut robot = start;
+    let mut report_every = (ticks / 100).max(1);
+    for k in 0..ticks {
+        let now = k as i64 * period;
+        // 1. Downlink arrivals.
+        while let Some(bytes) = downlink.recv_due(now as u64) {
+            if let Ok(message) = down::decode(&bytes) {
+                if let Some(h) = message.header() {
+                    operator.session().on_receive(&h, now);
+                }
+                operator.on_message(&message, now);
+                shadow.on_message(&message, now);
+            }
+        }
+        // 2. The operator.
+        let device = trajectory.sample(now as f64 * 1e-9);
+        let out = operator.step(now, device.position_m, device.velocity_m_per_s);
+        let remote = shadow.step(now, device.position_m, device.velocity_m_per_s);
+        buf.clear();
+        up::encode_into(&up::Message::Command(out.command), &mut buf);
+        uplink.send(now as u64, buf.clone(), buf.len());
+        series.push_operator(now, device.position_m, &out, &remote);
+        // 3. Uplink arrivals, the robot, the camera.
+        while let Some(bytes) = uplink.recv_due(now as u64) {
+            if let Ok(up::Message::Command(c)) = up::decode(&bytes) {
+                telerobot.session().on_receive(&c.header, now);
+                telerobot.on_command(CommandSample {
+                    sample_time_ns: c.header.sample_time_ns,
+                    position_m: c.position_m,
+                    velocity_m_per_s: c.velocity_m_per_s,
+                    received_ns: now,
+                });
+            }
+        }
+        let target = telerobot.target(now, robot);
+        let sample = world.step(target.position_m, target.velocity_m_per_s);
+        robot = sample.truth.position_m;
+        let frame = camera.frame(now, &world, &sample.object_offset_m)?;
+        let prior = telerobot.tangential_estimator().map(|e| e.theta());
+        let messages = telerobot.step(now, target.command_sample_time_ns, &sample.measured, frame);
+        for m in messages {
+            buf.clear();
+            down::encode_into(m, &mut buf);
+            downlink.send(now as u64, buf.clone(), buf.len());
+        }
+        let reconstruction = match (prior, telerobot.tangential_estimator()) {
+            (Some(theta), Some(est))
+                if est.phase() == crate::estimator::Phase::Learning && est.is_confident() =>
+            {
+                Some(
+                    est.regressions()
+                        .iter()
+                        .map(|r| {
+                            (
+                                r.y,
+                                (0..col::COUNT).map(|i| theta.0[i] * r.psi[i]).sum::<f64>(),
+                            )
+                        })
+                        .fold((0.0, 0.0), |(a, b), (y, p)| {
+                            (a + y * y, b + (y - p) * (y - p))
+                        }),
+                )
+            }
+            _ => None,
+        };
+        series.push_telerobot(
+            target.command_sample_time_ns,
+            sample.truth.force_n,
+            sample.in_contact,
+            telerobot.is_stable(),
+            reconstruction,
+            sample.tangential_state,
+            operator.tangential_state(),
+        );
+        if k % report_every == 0 {
+            progress(k as f64 / ticks as f64);
+            report_every = report_every.max(1);
+        }
+    }
+    progress(1.0);
+    let report = analyse(config, &series, &telerobot, &operator, &shadow);
+    Ok((series, report))
+}
+
+/// The simulated depth camera: the contact surface as a noisy patch following the object.
+struct Camera {
+    source: Option<SyntheticCloud>,
+    moving: bool,
+    period_ns: i64,
+    next_ns: i64,
+    rng: Pcg64,
+    origin: [f64; 3],
+    normal: [f64; 3],
+}
+
+impl Camera {
+    fn new(config: &ExperimentConfig) -> Self {
+        let c = &config.scene.cloud;
+        let s = &config.scene.surface;
+        let patch = Shape::Plane {
+            size_x_m: c.size_m[0],
+            size_y_m: c.size_m[1],
+        };
+        let source = (c.source == CloudKind::Plane).then(|| SyntheticCloud {
+            objects: vec![SceneObject::fixed(patch, Pose::default())],
+            spacing_m: c.spacing_m,
+            noise_std_m: c.noise_m,
+            dropout_fraction: c.dropout,
+            sensor_pose: Pose::default(),
+        });
+        Camera {
+            source,
+            moving: c.moving,
+            period_ns: (1e9 / c.rate_hz).round() as i64,
+            next_ns: 0,
+            rng: Pcg64::seed_from_u64(config.seed.wrapping_add(303)),
+            origin: s.point_m,
+            normal: s.normal,
+        }
+    }
+
+    /// A frame if one is due: the patch placed at the object's current offset along the tangents.
+    fn frame(
+        &mut self,
+        now_ns: i64,
+        world: &World,
+        offset: &[f64; 2],
+    ) -> Result<Option<CloudFrame>, ExperimentError> {
+        let Some(source) = &mut self.source else {
+            return Ok(None);
+        };
+        if now_ns < self.next_ns || (!self.moving && self.next_ns > 0) {
+            return Ok(None);
+        }
+        self.next_ns = now_ns + self.period_ns;
+        let f = world.frame();
+        let centre = vec3::add(
+            self.origin,
+            vec3::add(
+                vec3::scale(f.tangent1, offset[0]),
+                vec3::scale(f.tangent2, offset[1]),
+            ),
+        );
+        let pose = Pose::aligning_z_to(self.normal, centre)
+            .ok_or_else(|| ExperimentError::Cloud("surface normal".into()))?;
+        if let Some(object) = source.objects.first_mut() {
+            object.pose = pose;
+        }
+        source
+            .frame(now_ns, &mut self.rng)
+            .map(Some)
+            .map_err(|e| ExperimentError::Cloud(e.to_string()))
+    }
+}
