@@ -418,12 +418,11 @@ mod tests {
                 let h = 1e-6;
                 let (a, b) = (tr.sample(t - h), tr.sample(t + h));
                 let v = tr.sample(t).velocity_m_per_s;
-                for i in 0..3 {
+                for (i, vi) in v.iter().enumerate() {
                     let fd = (b.position_m[i] - a.position_m[i]) / (2.0 * h);
                     assert!(
-                        (fd - v[i]).abs() < 1e-5 * (1.0 + v[i].abs()),
-                        "{name} t={t} axis {i}: {fd} vs {}",
-                        v[i]
+                        (fd - vi).abs() < 1e-5 * (1.0 + vi.abs()),
+                        "{name} t={t} axis {i}: {fd} vs {vi}",
                     );
                 }
             }

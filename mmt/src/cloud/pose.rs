@@ -197,7 +197,7 @@ mod tests {
             [0.3, -1.2, 0.7],
             [3.1, 0.0, 0.0],
             [0.0, -3.0, 0.1],
-            [0.0, 0.0, 3.14],
+            [0.0, 0.0, 3.1],
         ] {
             let p = super::Pose::from_rotation_vector(rv, [1.0, 2.0, 3.0]);
             let [x, y, z, w] = p.quaternion_xyzw();

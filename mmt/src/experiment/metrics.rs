@@ -248,9 +248,9 @@ pub fn analyse(
     let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
     let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| -> Option<f64> {
         let (mut e2, mut m2) = (0.0, 0.0);
-        for i in from..s.len() {
-            let Some(m) = s.measured[i] else { continue };
-            let e = vec3::sub(rendered[i], m);
+        for (m, r) in s.measured.iter().zip(rendered).skip(from) {
+            let Some(m) = *m else { continue };
+            let e = vec3::sub(*r, m);
             match proj {
                 Some(a) => {
                     e2 += vec3::dot(e, a).powi(2);
@@ -489,7 +489,7 @@ impl Series {
                 q[0],
                 q[1],
                 q[2],
-                self.contact_true[i].map_or(-1, |c| b(c) as i32),
+                self.contact_true[i].map_or(-1, b),
                 b(self.contact_local[i]),
                 b(self.contact_remote[i]),
                 b(self.rendering[i]),

@@ -115,6 +115,7 @@ pub struct OperatorNode {
     episode_onset_ns: Option<i64>,
     model_id: Option<u32>,
     rendering: bool,
+    remote_in_contact: bool,
     last_sync_ns: Option<i64>,
     session: Session,
     stats: OperatorStats,
@@ -151,6 +152,7 @@ impl OperatorNode {
             episode_onset_ns: None,
             model_id: None,
             rendering: false,
+            remote_in_contact: false,
             last_sync_ns: None,
             session: Session::new(),
             stats: OperatorStats::default(),
@@ -163,13 +165,12 @@ impl OperatorNode {
     pub fn on_message(&mut self, message: &Message, now_ns: i64) {
         match message {
             Message::Parameters(p) => self.on_parameters(p, now_ns),
-            Message::Contact(c) => {
+            Message::Contact(c)
                 if self
                     .remote
-                    .is_none_or(|r| c.command_sample_time_ns >= r.command_sample_time_ns)
-                {
-                    self.remote = Some(*c);
-                }
+                    .is_none_or(|r| c.command_sample_time_ns >= r.command_sample_time_ns) =>
+            {
+                self.remote = Some(*c);
             }
             Message::StateSync(s) => self.on_sync(s, now_ns),
             Message::Cloud(frame) => self.on_cloud(frame),
@@ -388,11 +389,14 @@ impl OperatorNode {
             surface_point_m: remote.surface_point_m,
             points_used: 0,
         };
+        // The telerobot's state decides contact, whatever the local position says (the thesis);
+        // the local position only gives the depth for the normal axis.
         let mut t = self.tracker.update(&out, position_m);
-        // The remote state decides, whatever the local position says.
-        if touching && t.frame.is_some() && !t.in_contact && !t.release {
-            t.in_contact = true;
-        }
+        let in_contact = touching && t.frame.is_some();
+        t.onset = in_contact && !self.remote_in_contact;
+        t.release = !in_contact && self.remote_in_contact;
+        t.in_contact = in_contact;
+        self.remote_in_contact = in_contact;
         t
     }
 

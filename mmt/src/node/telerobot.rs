@@ -317,10 +317,12 @@ impl TelerobotNode {
         self.out.push(Message::Contact(wire::Contact {
             header,
             command_sample_time_ns: command_time,
-            state: if tracked.in_contact {
-                contact_state_to_wire(detected.state)
-            } else {
-                wire::ContactState::Free
+            // The tracked contact: during the tracker's grace ticks the proxy may read Free while
+            // the episode goes on.
+            state: match (tracked.in_contact, detected.state) {
+                (false, _) => wire::ContactState::Free,
+                (true, ContactState::Free) => wire::ContactState::Contact,
+                (true, s) => contact_state_to_wire(s),
             },
             proxy_position_m: if vec3::is_finite(detected.proxy_m) {
                 detected.proxy_m
@@ -452,7 +454,7 @@ impl Observer {
         dt: f64,
     ) {
         let (k, b) = (p.k_contact_n_per_m, p.b_contact_ns_per_m);
-        if !in_contact || !(k > 0.0 && b > 0.0) {
+        if !in_contact || k <= 0.0 || b <= 0.0 || k.is_nan() || b.is_nan() {
             *self = Observer::default();
             return;
         }

@@ -20,7 +20,7 @@
 //! [cloud]
 //! source = "plane"            # plane | none
 //! size_m = [0.3, 0.3]
-//! spacing_m = 0.005
+//! spacing_m = 0.0045
 //! noise_m = 0.0005
 //! dropout = 0.0
 //! rate_hz = 30.0
@@ -33,8 +33,8 @@
 //! filter_cutoff_hz = 5.0
 //! forgetting = 0.9999
 //! [proxy]
-//! r1_m = 0.003
-//! r2_m = 0.005
+//! r1_m = 0.004
+//! r2_m = 0.006
 //! r3_m = 0.03
 //! [sensors]
 //! preset = "franka-like"      # franka-like | clean
@@ -140,10 +140,12 @@ pub struct Surface {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CloudSource {
-    /// `plane`: a rectangular patch of the surface; `none`: no cloud (contact from the true
-    /// geometry on the telerobot, remote contact on the operator).
+    /// `plane`: the object's contact face (large against the workspace); `none`: no cloud
+    /// (contact from the true geometry on the telerobot, remote contact on the operator).
     pub source: CloudKind,
-    /// Patch size along the surface's two tangents [m].
+    /// The camera's window on the face, along the surface's two tangents, centred on the tool
+    /// [m]. It must cover the tool's motion over a round trip: at 400 ms each way and 15 cm/s,
+    /// 12 cm.
     pub size_m: [f64; 2],
     /// Grid spacing [m]. Must be below `√2·(r1 + r2)/2` of the proxy.
     pub spacing_m: f64,
@@ -163,7 +165,7 @@ impl Default for CloudSource {
         CloudSource {
             source: CloudKind::Plane,
             size_m: [0.3, 0.3],
-            spacing_m: 0.005,
+            spacing_m: 0.0045,
             noise_m: 0.0005,
             dropout: 0.0,
             rate_hz: 30.0,
@@ -255,8 +257,8 @@ pub struct ProxySection {
 impl Default for ProxySection {
     fn default() -> Self {
         ProxySection {
-            r1_m: 0.003,
-            r2_m: 0.005,
+            r1_m: 0.004,
+            r2_m: 0.006,
             r3_m: 0.03,
         }
     }

@@ -80,10 +80,10 @@ fn errors_name_the_field_the_value_and_the_range() {
             "[0.0, 0.0, 0.0]",
         ),
         (
+            "spacing_m = 0.0045",
             "spacing_m = 0.005",
-            "spacing_m = 0.02",
             "cloud.spacing_m",
-            "0.02",
+            "0.005",
         ),
         (
             "noise_m = 0.0005",
@@ -103,7 +103,7 @@ fn errors_name_the_field_the_value_and_the_range() {
             "model.forgetting",
             "1.5",
         ),
-        ("r2_m = 0.005", "r2_m = 0.002", "proxy.r2_m", "0.002"),
+        ("r2_m = 0.006", "r2_m = 0.002", "proxy.r2_m", "0.002"),
         (
             "normal = \"kelvin-voigt\"",
             "normal = \"sliding-mass\"",
