@@ -142,6 +142,26 @@ impl Identity {
     }
 }
 
+/// What `gen-cert` prints after writing `cert` and `key`: where they are and that the
+/// certificate goes to the peer, which passes it as `peer_flag` (e.g. `operator run --trust`).
+pub fn handover_note(cert: &Path, key: &Path, peer_flag: &str) -> String {
+    format!(
+        "wrote {} and {}\ngive {} to the peer ({peer_flag} {}); keep {} private\n",
+        cert.display(),
+        key.display(),
+        file_name(cert),
+        cert.display(),
+        file_name(key),
+    )
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
 /// Reads the first certificate of a PEM file (what `gen-cert` writes, what `--trust` names).
 pub fn read_cert(path: &Path) -> Result<CertificateDer<'static>, IdentityError> {
     let bytes = read(path, "cannot read the certificate")?;

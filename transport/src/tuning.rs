@@ -123,6 +123,23 @@ pub struct StreamLimits {
 }
 
 impl LinkTuning {
+    /// The defaults with [`expected_one_way_delay`](Self::expected_one_way_delay) set from a
+    /// command-line value in milliseconds (0 to 60 000).
+    pub fn with_expected_delay_ms(ms: f64) -> Result<LinkTuning, TuningError> {
+        let delay = Duration::try_from_secs_f64(ms / 1000.0)
+            .ok()
+            .filter(|d| *d <= Duration::from_secs(60))
+            .ok_or(TuningError {
+                field: "expected_one_way_delay",
+                value: format!("{ms} ms"),
+                expected: "a delay from 0 to 60000 ms",
+            })?;
+        Ok(LinkTuning {
+            expected_one_way_delay: delay,
+            ..LinkTuning::default()
+        })
+    }
+
     /// quinn's transport configuration for these settings, letting the peer open `limits`.
     pub fn transport_config(&self, limits: StreamLimits) -> Result<TransportConfig, TuningError> {
         let fail = |field, value: String, expected| TuningError {
@@ -257,6 +274,15 @@ mod tests {
             bad.transport_config(limits).unwrap_err().field,
             "time_threshold"
         );
+    }
+
+    #[test]
+    fn the_delay_hint_is_checked() {
+        let t = LinkTuning::with_expected_delay_ms(400.0).unwrap();
+        assert_eq!(t.expected_one_way_delay, Duration::from_millis(400));
+        for bad in [-1.0, f64::NAN, 1e9] {
+            assert!(LinkTuning::with_expected_delay_ms(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]
