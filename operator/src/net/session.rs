@@ -59,7 +59,7 @@ impl Client<'_> {
         let mut stop = self.stop.clone();
         let opened = tokio::select! {
             opened = tokio::time::timeout(self.config.handshake_timeout, self.open()) => opened,
-            _ = stop.wait_for(|s| *s) => return Ended::Stopped,
+            () = stopped(&mut stop) => return Ended::Stopped,
         };
         let (connection, control) = match opened {
             Ok(Ok(opened)) => opened,
@@ -171,7 +171,7 @@ impl Client<'_> {
         let mut stop = self.stop.clone();
         loop {
             tokio::select! {
-                _ = stop.wait_for(|s| *s) => {
+                () = stopped(&mut stop) => {
                     say_bye(connection, &mut control).await;
                     return (true, "operator stopping (said Bye)".to_owned());
                 }
@@ -209,6 +209,11 @@ impl Client<'_> {
             }
         }
     }
+}
+
+/// Completes once the client is told to stop (or the sender is gone).
+async fn stopped(stop: &mut watch::Receiver<bool>) {
+    let _ = stop.wait_for(|s| *s).await;
 }
 
 /// Sends `Bye` and gives the telerobot a moment to close the connection in answer (it does at
