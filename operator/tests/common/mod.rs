@@ -221,12 +221,20 @@ pub fn echo_loop(
     })
 }
 
-/// Sends commands at 1 kHz for `duration` from a thread (absolute deadlines, no spin).
-pub fn command_source(link: OperatorLink, duration: Duration) -> JoinHandle<u64> {
+/// Sends commands at 1 kHz for `duration` (or until `stop`) from a thread, on absolute
+/// deadlines without spinning; returns how many it sent.
+pub fn command_source(
+    link: OperatorLink,
+    duration: Duration,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<u64> {
     std::thread::spawn(move || {
         let start = monotonic_ns();
-        let count = (duration.as_millis()) as i64;
+        let count = duration.as_millis() as i64;
         for i in 0..count {
+            if stop.load(Ordering::Relaxed) {
+                return i as u64;
+            }
             let due = start + i * MS;
             let now = monotonic_ns();
             if due > now {
