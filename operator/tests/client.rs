@@ -34,9 +34,14 @@ async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
     assert_eq!(got.message.position_m[0], 0.5);
 
     // Telerobot → operator: contact into its slot, measurements queued, a cloud on a stream.
-    tr.link.send(Datagram::Contact(contact(got.message.header.sample_time_ns)));
+    tr.link.send(Datagram::Contact(contact(
+        got.message.header.sample_time_ns,
+    )));
     let c = eventually(WAIT, || op.link.contact()).await;
-    assert_eq!(c.message.command_sample_time_ns, got.message.header.sample_time_ns);
+    assert_eq!(
+        c.message.command_sample_time_ns,
+        got.message.header.sample_time_ns
+    );
     for i in 0..3 {
         tr.link.send(Datagram::Measurement(Measurement {
             header: Header::default(),
@@ -49,7 +54,10 @@ async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
     }
     for i in 0..3 {
         let m = eventually(WAIT, || op.link.measurement()).await;
-        assert_eq!(m.message.command_sample_time_ns, i, "queued in order, not collapsed");
+        assert_eq!(
+            m.message.command_sample_time_ns, i,
+            "queued in order, not collapsed"
+        );
     }
     tr.link.send_cloud(Box::new(CloudFrame {
         frame_id: 9,
@@ -59,7 +67,10 @@ async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
         points: vec![[0.5, 0.25, 0.0]; 10_000],
     }));
     let cloud = eventually(WAIT, || op.link.cloud()).await;
-    assert_eq!((cloud.message.frame_id, cloud.message.points.len()), (9, 10_000));
+    assert_eq!(
+        (cloud.message.frame_id, cloud.message.points.len()),
+        (9, 10_000)
+    );
 
     // Pings give a clock offset (same clock here: about zero) and echoes an RTT.
     let stats = eventually(WAIT, || {
@@ -80,7 +91,11 @@ async fn a_telerobot_with_another_certificate_is_refused_naming_the_pinned_file(
         telerobot: Identity::generate(&["telerobot"]).unwrap(),
         operator: certs.operator.clone(),
     };
-    let tr = start_telerobot(&impostor, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
+    let tr = start_telerobot(
+        &impostor,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
     let op = start_operator(tr.addr, &certs.operator, &certs.telerobot, "alice");
     let error = op.task.await.unwrap().unwrap_err();
     assert!(matches!(error, NetError::PinMismatch { .. }), "{error:?}");
@@ -108,7 +123,11 @@ async fn an_operator_the_telerobot_does_not_trust_is_told_so() {
 async fn a_second_operator_gets_busy_and_the_first_one_stays_in_control() {
     let certs = Certs::new();
     let bob = Identity::generate(&["bob"]).unwrap();
-    let tr = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator, &bob]);
+    let tr = start_telerobot(
+        &certs,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator, &bob],
+    );
     let alice = start_operator(tr.addr, &certs.operator, &certs.telerobot, "alice");
     eventually(WAIT, || alice.link.status().connected().then_some(())).await;
     let second = start_operator(tr.addr, &bob, &certs.telerobot, "bob");
@@ -131,7 +150,13 @@ async fn the_operator_reconnects_when_the_telerobot_comes_back() {
     eventually(WAIT, || op.link.status().connected().then_some(())).await;
     tr.stop().await;
     eventually(WAIT, || (!op.link.status().connected()).then_some(())).await;
-    assert!(op.link.status().last_disconnect().unwrap().contains("shutting down"));
+    assert!(
+        op.link
+            .status()
+            .last_disconnect()
+            .unwrap()
+            .contains("shutting down")
+    );
 
     let tr = start_telerobot(&certs, addr, &[&certs.operator]);
     eventually(Duration::from_secs(10), || {
@@ -148,8 +173,7 @@ async fn garbage_datagrams_from_the_telerobot_are_counted_and_ignored() {
     let certs = Certs::new();
     // A hand-made telerobot: welcomes, then sends garbage around two valid datagrams.
     let pins = OperatorPins::new(vec![certs.operator.cert.clone()]);
-    let config =
-        transport::endpoint::server_config(&certs.telerobot, pins, &tuning()).unwrap();
+    let config = transport::endpoint::server_config(&certs.telerobot, pins, &tuning()).unwrap();
     let endpoint = quinn::Endpoint::server(config, "127.0.0.1:0".parse().unwrap()).unwrap();
     let op = start_operator(
         endpoint.local_addr().unwrap(),
@@ -165,7 +189,9 @@ async fn garbage_datagrams_from_the_telerobot_are_counted_and_ignored() {
         version: protocol::PROTOCOL_VERSION,
         scene: scene(),
     });
-    framing::write_frame(&mut send, &t2o::encode(&welcome)).await.unwrap();
+    framing::write_frame(&mut send, &t2o::encode(&welcome))
+        .await
+        .unwrap();
 
     let mut valid = contact(0);
     valid.header.seq = 1;

@@ -9,7 +9,7 @@
 mod common;
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::*;
@@ -18,9 +18,11 @@ use transport::clock::monotonic_ns;
 
 const DELAY_NS: i64 = 400 * MS;
 
-fn serial() -> MutexGuard<'static, ()> {
-    static SERIAL: Mutex<()> = Mutex::new(());
-    SERIAL.lock().unwrap_or_else(PoisonError::into_inner)
+/// Held by each test for its whole run: the tests must not overlap (async-aware, as it is held
+/// across awaits; each test has its own runtime).
+async fn serial() -> tokio::sync::MutexGuard<'static, ()> {
+    static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+    SERIAL.lock().await
 }
 
 /// A telerobot behind a 400 ms shim, with the stand-in loop echoing commands.
@@ -40,7 +42,12 @@ async fn rig() -> Rig {
     config.down = LinkConfig::delay(DELAY_NS as u64);
     config.spin_window_ns = 50_000;
     let shim = netem::shim::start(config).unwrap();
-    let operator = start_operator(shim.local_addr(), &certs.operator, &certs.telerobot, "alice");
+    let operator = start_operator(
+        shim.local_addr(),
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+    );
     eventually(Duration::from_secs(15), || {
         operator.link.status().connected().then_some(())
     })
@@ -58,7 +65,7 @@ async fn rig() -> Rig {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn at_400_ms_datagrams_are_not_queued_and_the_echo_rtt_is_the_link_s() {
-    let _serial = serial();
+    let _serial = serial().await;
     let rig = rig().await;
     // 1 kHz commands for 3 s, starting right after the handshake (where Cubic's small initial
     // window queued datagrams for over a second).
@@ -82,7 +89,10 @@ async fn at_400_ms_datagrams_are_not_queued_and_the_echo_rtt_is_the_link_s() {
         p99 as f64 / 1e6,
         max as f64 / 1e6
     );
-    assert!(p99 < 50 * MS, "p99 extra delay {p99} ns: datagrams were queued");
+    assert!(
+        p99 < 50 * MS,
+        "p99 extra delay {p99} ns: datagrams were queued"
+    );
 
     for (side, stats) in [
         ("operator", rig.operator.link.stats()),
@@ -102,14 +112,17 @@ async fn at_400_ms_datagrams_are_not_queued_and_the_echo_rtt_is_the_link_s() {
         assert!((rtt - 2 * DELAY_NS).abs() < 5 * MS, "{side} RTT {rtt} ns");
     }
     let p50 = rig.operator.link.stats().rtt_p50_ns.unwrap();
-    assert!((p50 - 2 * DELAY_NS).abs() < 5 * MS, "operator RTT p50 {p50} ns");
+    assert!(
+        (p50 - 2 * DELAY_NS).abs() < 5 * MS,
+        "operator RTT p50 {p50} ns"
+    );
     rig.operator.stop().await.unwrap();
     rig.shim.shutdown().unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_two_second_outage_heals_without_a_restart() {
-    let _serial = serial();
+    let _serial = serial().await;
     let rig = rig().await;
     let link = rig.operator.link.clone();
     let stop = Arc::new(AtomicBool::new(false));
@@ -129,7 +142,9 @@ async fn a_two_second_outage_heals_without_a_restart() {
     }
     tokio::time::sleep(Duration::from_secs(2)).await;
     for d in Direction::ALL {
-        rig.shim.set_config(d, LinkConfig::delay(DELAY_NS as u64)).unwrap();
+        rig.shim
+            .set_config(d, LinkConfig::delay(DELAY_NS as u64))
+            .unwrap();
     }
     let healed_at = monotonic_ns();
     rig.delays.lock().unwrap().clear();

@@ -72,12 +72,18 @@ struct RawOperator {
     _endpoint: quinn::Endpoint,
 }
 
-async fn connect(telerobot: &Telerobot, me: &Identity) -> Result<RawOperator, quinn::ConnectionError> {
+async fn connect(
+    telerobot: &Telerobot,
+    me: &Identity,
+) -> Result<RawOperator, quinn::ConnectionError> {
     let pin = TelerobotPin::new(telerobot.identity.cert.clone(), "telerobot.crt");
     let config = transport::endpoint::client_config(me, pin, &LinkTuning::default(), 4).unwrap();
     let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).unwrap();
     endpoint.set_default_client_config(config);
-    let conn = endpoint.connect(telerobot.addr, SERVER_NAME).unwrap().await?;
+    let conn = endpoint
+        .connect(telerobot.addr, SERVER_NAME)
+        .unwrap()
+        .await?;
     let (send, recv) = conn.open_bi().await?;
     Ok(RawOperator {
         conn,
@@ -152,7 +158,10 @@ async fn a_trusted_operator_is_welcomed_and_datagrams_flow_both_ways() {
     let t2o::Message::Welcome(welcome) = raw.hello("alice", PROTOCOL_VERSION).await else {
         panic!("no Welcome")
     };
-    assert_eq!((welcome.version, welcome.scene), (PROTOCOL_VERSION, scene()));
+    assert_eq!(
+        (welcome.version, welcome.scene),
+        (PROTOCOL_VERSION, scene())
+    );
     assert!(tr.link.status().connected());
     assert_eq!(tr.link.status().operator().as_deref(), Some("alice"));
 
@@ -232,7 +241,10 @@ async fn a_second_operator_is_refused_while_one_is_in_control_and_accepted_after
     );
     let tr = start(&[&a, &b]);
     let mut first = connect(&tr, &a).await.unwrap();
-    assert!(matches!(first.hello("alice", PROTOCOL_VERSION).await, t2o::Message::Welcome(_)));
+    assert!(matches!(
+        first.hello("alice", PROTOCOL_VERSION).await,
+        t2o::Message::Welcome(_)
+    ));
     let mut second = connect(&tr, &b).await.unwrap();
     let answer = second.hello("bob", PROTOCOL_VERSION).await;
     let t2o::Message::Refused(refused) = answer else {
@@ -251,7 +263,10 @@ async fn a_second_operator_is_refused_while_one_is_in_control_and_accepted_after
     first.conn.close(0u32.into(), b"leaving");
     eventually(|| (!tr.link.status().connected()).then_some(())).await;
     let mut third = connect(&tr, &b).await.unwrap();
-    assert!(matches!(third.hello("bob", PROTOCOL_VERSION).await, t2o::Message::Welcome(_)));
+    assert!(matches!(
+        third.hello("bob", PROTOCOL_VERSION).await,
+        t2o::Message::Welcome(_)
+    ));
     assert_eq!(tr.link.status().session(), 2);
     assert_eq!(tr.link.status().operator().as_deref(), Some("bob"));
 }
@@ -313,12 +328,14 @@ async fn garbage_datagrams_are_counted_and_ignored() {
         velocity_m_per_s: [0.0; 3],
     }));
     garbage.push(command[..command.len() - 3].to_vec());
-    garbage.push(t2o::encode(&t2o::Message::Pong(protocol::telerobot_to_operator::Pong {
-        id: 1,
-        t1_ns: 2,
-        t2_ns: 3,
-        t3_ns: 4,
-    })));
+    garbage.push(t2o::encode(&t2o::Message::Pong(
+        protocol::telerobot_to_operator::Pong {
+            id: 1,
+            t1_ns: 2,
+            t2_ns: 3,
+            t3_ns: 4,
+        },
+    )));
     garbage.push(o2t::encode(&o2t::Message::Bye));
     let sent = garbage.len() as u64;
     for g in garbage {

@@ -9,6 +9,8 @@
 /// Nanoseconds of `CLOCK_MONOTONIC` (time since boot, not counting suspend). A vDSO call: no
 /// system call, no lock, no allocation.
 #[allow(unsafe_code)]
+// `time_t` and `c_long` are i64 on 64-bit Linux but i32 on 32-bit targets.
+#[allow(clippy::useless_conversion)]
 pub fn monotonic_ns() -> i64 {
     let mut ts = libc::timespec {
         tv_sec: 0,

@@ -41,7 +41,10 @@ fn client(identity: &Identity, pinned: &Identity) -> (quinn::Endpoint, Arc<Teler
 async fn attempt(
     server: &Server,
     client: &quinn::Endpoint,
-) -> (Result<(), quinn::ConnectionError>, Result<(), quinn::ConnectionError>) {
+) -> (
+    Result<(), quinn::ConnectionError>,
+    Result<(), quinn::ConnectionError>,
+) {
     let accept = async {
         let incoming = server.endpoint.accept().await.unwrap();
         let conn = incoming.await?;
@@ -80,11 +83,17 @@ async fn trusted_peers_connect_and_frames_arrive() {
         framing::read_frame(&mut recv, &mut buf).await.unwrap();
         framing::write_frame(&mut send, &buf).await.unwrap();
         let mut uni = conn.open_uni().await.unwrap();
-        framing::write_cloud(&mut uni, &[7u8; 100_000]).await.unwrap();
+        framing::write_cloud(&mut uni, &[7u8; 100_000])
+            .await
+            .unwrap();
         conn.closed().await
     };
     let client_side = async {
-        let conn = client.connect(server.addr, SERVER_NAME).unwrap().await.unwrap();
+        let conn = client
+            .connect(server.addr, SERVER_NAME)
+            .unwrap()
+            .await
+            .unwrap();
         assert_eq!(
             conn.handshake_data()
                 .unwrap()
@@ -100,7 +109,10 @@ async fn trusted_peers_connect_and_frames_arrive() {
         framing::read_frame(&mut recv, &mut buf).await.unwrap();
         assert_eq!(buf, b"ping");
         let mut uni = conn.accept_uni().await.unwrap();
-        assert_eq!(framing::read_cloud(&mut uni).await.unwrap(), vec![7u8; 100_000]);
+        assert_eq!(
+            framing::read_cloud(&mut uni).await.unwrap(),
+            vec![7u8; 100_000]
+        );
         let too_long = vec![0u8; MAX_CONTROL_FRAME_BYTES as usize + 1];
         assert!(matches!(
             framing::write_frame(&mut send, &too_long).await,

@@ -11,9 +11,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use operator::net::{self as op_net, NetError, OperatorLink};
+use protocol::Header;
 use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{Contact, ContactState, ModelStructure, SceneSummary};
-use protocol::Header;
 use telerobot::net::{self as tr_net, Datagram, TelerobotLink};
 use tokio::sync::oneshot;
 use transport::Identity;
@@ -100,12 +100,7 @@ pub struct Operator {
     pub task: tokio::task::JoinHandle<Result<(), NetError>>,
 }
 
-pub fn start_operator(
-    addr: SocketAddr,
-    me: &Identity,
-    pinned: &Identity,
-    name: &str,
-) -> Operator {
+pub fn start_operator(addr: SocketAddr, me: &Identity, pinned: &Identity, name: &str) -> Operator {
     let mut config = op_net::NetConfig::new(
         addr,
         me.clone(),
