@@ -51,7 +51,7 @@ pub(super) async fn run(connection: Connection, context: &Context) {
         Err(refusal) => return refuse(&connection, send, refusal, context).await,
     };
     let operator = hello.operator_name;
-    let control = match Control::claim(&context.slot, &operator) {
+    let mut control = match Control::claim(&context.slot, &operator) {
         Ok(control) => control,
         Err(controlling_operator) => {
             let refusal = Refusal::Busy {
@@ -76,13 +76,15 @@ pub(super) async fn run(connection: Connection, context: &Context) {
     let reason = pump(
         &connection,
         recv,
-        control,
+        &mut control,
         context,
         session,
         hello.want_clouds,
     )
     .await;
+    // Ended before the slot is given back, so that a next operator's `begin` is not undone.
     status.end();
+    drop(control);
     tracing::info!(%remote, %operator, session, %reason, "operator disconnected");
 }
 
@@ -122,7 +124,7 @@ async fn refuse(
 async fn pump(
     connection: &Connection,
     recv: RecvStream,
-    mut control: Control,
+    control: &mut Control,
     context: &Context,
     session: u64,
     want_clouds: bool,
