@@ -158,7 +158,7 @@ async fn the_operator_reconnects_when_the_telerobot_comes_back() {
             .contains("shutting down")
     );
 
-    let tr = start_telerobot(&certs, addr, &[&certs.operator]);
+    let tr = restart_telerobot(&certs, addr, &[&certs.operator]).await;
     eventually(Duration::from_secs(10), || {
         (op.link.status().session() == 2 && op.link.status().connected()).then_some(())
     })

@@ -56,6 +56,33 @@ pub struct Telerobot {
 }
 
 pub fn start_telerobot(certs: &Certs, listen: SocketAddr, trusted: &[&Identity]) -> Telerobot {
+    try_start_telerobot(certs, listen, trusted).unwrap()
+}
+
+/// Starts a telerobot on `listen` again, retrying for up to 5 s while the previous server's
+/// socket is still being released (quinn's endpoint driver lets go of it asynchronously).
+pub async fn restart_telerobot(
+    certs: &Certs,
+    listen: SocketAddr,
+    trusted: &[&Identity],
+) -> Telerobot {
+    for _ in 0..100 {
+        match try_start_telerobot(certs, listen, trusted) {
+            Ok(t) => return t,
+            Err(tr_net::NetError::Bind { .. }) => {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+    panic!("{listen} still in use after 5 s")
+}
+
+fn try_start_telerobot(
+    certs: &Certs,
+    listen: SocketAddr,
+    trusted: &[&Identity],
+) -> Result<Telerobot, tr_net::NetError> {
     let mut config = tr_net::NetConfig::new(
         listen,
         certs.telerobot.clone(),
@@ -64,18 +91,18 @@ pub fn start_telerobot(certs: &Certs, listen: SocketAddr, trusted: &[&Identity])
     );
     config.tuning = tuning();
     let (link, io) = tr_net::link(tr_net::DEFAULT_OUTBOX_CAPACITY).unwrap();
-    let server = tr_net::bind(config).unwrap();
+    let server = tr_net::bind(config)?;
     let addr = server.local_addr().unwrap();
     let (stop, stopped) = oneshot::channel::<()>();
     let task = tokio::spawn(server.serve(io, async {
         let _ = stopped.await;
     }));
-    Telerobot {
+    Ok(Telerobot {
         addr,
         link,
         stop: Some(stop),
         task,
-    }
+    })
 }
 
 impl Telerobot {
