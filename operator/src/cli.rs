@@ -4,8 +4,10 @@
 //! - `operator devices` — what this machine offers: recognised HID devices, whether the Force
 //!   Dimension SDK loads and which devices it sees, and what each backend can and cannot do.
 //!   Works with no device and no SDK (says so, exits 0).
-//! - `operator run --device SPEC` — parses and opens the device; the network and haptic loop are
-//!   not built yet (says so, exits 2).
+//! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
+//! - `operator run --device SPEC [--connect ADDR --identity DIR --trust TELEROBOT_CRT]` —
+//!   validates the network configuration (if given), parses and opens the device; the haptic
+//!   loop is not built yet (says so, exits 2).
 //!
 //! Not here: logging set-up (main), anything of the haptic loop.
 
@@ -16,6 +18,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
+
+pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
@@ -37,8 +41,10 @@ pub struct Cli {
 pub enum Command {
     /// List the haptic devices and backends this machine offers.
     Devices(DevicesArgs),
-    /// Open a device and run the operator (network part not built yet).
+    /// Open a device and run the operator (haptic loop not built yet).
     Run(RunArgs),
+    /// Make the operator's certificate and key (DIR/operator.crt, DIR/operator.key).
+    GenCert(GenCertArgs),
 }
 
 /// Force Dimension SDK options.
@@ -97,6 +103,9 @@ pub struct RunArgs {
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
+    /// Network options.
+    #[command(flatten)]
+    pub net: NetArgs,
 }
 
 /// `operator devices`: prints what this machine offers. Always succeeds unless output fails.
@@ -238,9 +247,10 @@ fn render_into(
     Ok(())
 }
 
-/// `operator run`: opens the device, warns when it outputs no force, then stops (network part not
-/// built yet; exit code 2).
+/// `operator run`: validates the network configuration, opens the device, warns when it outputs
+/// no force, then stops (haptic loop not built yet; exit code 2).
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+    let net = args.net.config()?;
     let options = OpenOptions {
         managed: ManagedConfig {
             enable_ramp: Duration::from_millis(args.enable_ramp_ms),
@@ -265,9 +275,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
     if !spec.outputs_force {
         writeln!(out, "WARNING: {}", no_force_warning(&args.device))?;
     }
+    if let Some(net) = &net {
+        writeln!(
+            out,
+            "network: telerobot {} pinned to {}, as '{}'",
+            net.connect, net.telerobot_cert_source, net.operator_name
+        )?;
+    }
     writeln!(
         out,
-        "operator run: the network and haptic loop are not built yet; device opened and closed again."
+        "operator run: the haptic loop is not built yet; device opened and closed again."
     )?;
     Ok(ExitCode::from(2))
 }
@@ -281,5 +298,6 @@ pub fn no_force_warning(spec: &DeviceSpec) -> String {
     }
 }
 
+mod net;
 #[cfg(test)]
 mod tests;

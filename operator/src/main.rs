@@ -20,6 +20,9 @@ fn main() -> ExitCode {
             operator::cli::devices(args, &mut out).map(|()| ExitCode::SUCCESS)
         }
         Command::Run(args) => operator::cli::run(args, &mut out),
+        Command::GenCert(args) => {
+            operator::cli::gen_cert(args, &mut out).map(|()| ExitCode::SUCCESS)
+        }
     };
     result.unwrap_or_else(|e| {
         eprintln!("operator: {e:#}");

@@ -1,4 +1,28 @@
-fn main() {
-    eprintln!("telerobot: not built yet");
-    std::process::exit(2);
+//! The `telerobot` binary: parses arguments, sets up logging, calls [`telerobot::cli`].
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use telerobot::cli::{Cli, Command};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let result = match &cli.command {
+        Command::GenCert(args) => telerobot::cli::gen_cert(args, &mut std::io::stdout()),
+        Command::Run(args) => telerobot::cli::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("telerobot: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

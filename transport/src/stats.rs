@@ -1,0 +1,310 @@
+//! Link statistics shared with the real-time side as atomics, and [`DatagramLink`], the network
+//! task's per-connection datagram bookkeeping that fills them.
+//!
+//! Counters are cumulative over the daemon's life (across sessions); RTT and clock values belong
+//! to the current session and are cleared ([`LinkStats::clear_session`]) when it ends.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering::Relaxed};
+
+use bytes::Bytes;
+use protocol::Header;
+use protocol::session::{Arrival, Session};
+
+/// Marks an absent value in an `AtomicI64`.
+const NONE: i64 = i64::MIN;
+
+/// How many recent RTT samples the median is taken over.
+pub const RTT_WINDOW: usize = 512;
+
+/// The counters of one daemon's link, updated by the network task, read by anyone (relaxed
+/// atomics: each value is exact, a snapshot is not one instant).
+#[derive(Debug)]
+pub struct LinkStats {
+    sent: AtomicU64,
+    send_oversized: AtomicU64,
+    send_failed: AtomicU64,
+    garbage: AtomicU64,
+    received: AtomicU64,
+    accepted: AtomicU64,
+    late: AtomicU64,
+    duplicates: AtomicU64,
+    lost: AtomicU64,
+    rtt_latest_ns: AtomicI64,
+    rtt_smoothed_ns: AtomicI64,
+    rtt_min_ns: AtomicI64,
+    rtt_p50_ns: AtomicI64,
+    clock_offset_ns: AtomicI64,
+    clock_delay_ns: AtomicI64,
+    /// Counts of earlier sessions (order of `sequence_counters`), so the peer's sequence counts
+    /// stay cumulative.
+    base: [AtomicU64; 5],
+}
+
+impl Default for LinkStats {
+    fn default() -> Self {
+        LinkStats {
+            sent: AtomicU64::new(0),
+            send_oversized: AtomicU64::new(0),
+            send_failed: AtomicU64::new(0),
+            garbage: AtomicU64::new(0),
+            received: AtomicU64::new(0),
+            accepted: AtomicU64::new(0),
+            late: AtomicU64::new(0),
+            duplicates: AtomicU64::new(0),
+            lost: AtomicU64::new(0),
+            rtt_latest_ns: AtomicI64::new(NONE),
+            rtt_smoothed_ns: AtomicI64::new(NONE),
+            rtt_min_ns: AtomicI64::new(NONE),
+            rtt_p50_ns: AtomicI64::new(NONE),
+            clock_offset_ns: AtomicI64::new(NONE),
+            clock_delay_ns: AtomicI64::new(NONE),
+            base: Default::default(),
+        }
+    }
+}
+
+/// A copy of [`LinkStats`]. Counts since the daemon started; RTT and clock of the current
+/// session (`None` before the first sample or between sessions).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkSnapshot {
+    /// Datagrams handed to quinn.
+    pub sent: u64,
+    /// Datagrams not sent because they exceeded the connection's maximum datagram size.
+    pub send_oversized: u64,
+    /// Datagrams quinn refused (connection lost, datagrams disabled by the peer).
+    pub send_failed: u64,
+    /// Datagrams received that did not decode, or decoded to a message that is not a datagram of
+    /// this direction: counted and ignored.
+    pub garbage: u64,
+    /// Well-formed datagrams with a header received (`protocol::session` counts).
+    pub received: u64,
+    /// ... of which the newest of their direction when they arrived.
+    pub accepted: u64,
+    /// ... of which reordered behind a newer one (dropped as stale for the direction).
+    pub late: u64,
+    /// ... of which seen before.
+    pub duplicates: u64,
+    /// Sequence numbers never received (`gaps − late`, per session, summed).
+    pub lost: u64,
+    /// Newest RTT sample from header echoes \[ns\].
+    pub rtt_latest_ns: Option<i64>,
+    /// Smoothed RTT (RFC 6298) \[ns\].
+    pub rtt_smoothed_ns: Option<i64>,
+    /// Smallest RTT sample of the session \[ns\].
+    pub rtt_min_ns: Option<i64>,
+    /// Median of the last [`RTT_WINDOW`] samples \[ns\] (updated by the operator's ping tick).
+    pub rtt_p50_ns: Option<i64>,
+    /// Clock offset θ, peer clock minus ours \[ns\] (operator only: from Ping/Pong).
+    pub clock_offset_ns: Option<i64>,
+    /// Round-trip delay δ of the sample θ came from \[ns\].
+    pub clock_delay_ns: Option<i64>,
+}
+
+fn get(a: &AtomicI64) -> Option<i64> {
+    Some(a.load(Relaxed)).filter(|&v| v != NONE)
+}
+
+fn set(a: &AtomicI64, v: Option<i64>) {
+    a.store(v.unwrap_or(NONE), Relaxed);
+}
+
+impl LinkStats {
+    /// All counts zero, no RTT.
+    pub fn new() -> Arc<LinkStats> {
+        Arc::new(LinkStats::default())
+    }
+
+    /// A copy of every value. Lock-free.
+    pub fn snapshot(&self) -> LinkSnapshot {
+        let load = |a: &AtomicU64| a.load(Relaxed);
+        LinkSnapshot {
+            sent: load(&self.sent),
+            send_oversized: load(&self.send_oversized),
+            send_failed: load(&self.send_failed),
+            garbage: load(&self.garbage),
+            received: load(&self.received),
+            accepted: load(&self.accepted),
+            late: load(&self.late),
+            duplicates: load(&self.duplicates),
+            lost: load(&self.lost),
+            rtt_latest_ns: get(&self.rtt_latest_ns),
+            rtt_smoothed_ns: get(&self.rtt_smoothed_ns),
+            rtt_min_ns: get(&self.rtt_min_ns),
+            rtt_p50_ns: get(&self.rtt_p50_ns),
+            clock_offset_ns: get(&self.clock_offset_ns),
+            clock_delay_ns: get(&self.clock_delay_ns),
+        }
+    }
+
+    /// Counts one datagram that was not a valid datagram of this direction.
+    pub fn count_garbage(&self) {
+        self.garbage.fetch_add(1, Relaxed);
+    }
+
+    /// Publishes the clock offset estimate (θ, δ) \[ns\].
+    pub fn set_clock(&self, offset_ns: Option<i64>, delay_ns: Option<i64>) {
+        set(&self.clock_offset_ns, offset_ns);
+        set(&self.clock_delay_ns, delay_ns);
+    }
+
+    /// The peer's sequence counts, in the order of `base`.
+    fn sequence_counters(&self) -> [&AtomicU64; 5] {
+        [
+            &self.received,
+            &self.accepted,
+            &self.late,
+            &self.duplicates,
+            &self.lost,
+        ]
+    }
+
+    /// Forgets the session's RTT and clock values (the counts stay).
+    pub fn clear_session(&self) {
+        for a in [
+            &self.rtt_latest_ns,
+            &self.rtt_smoothed_ns,
+            &self.rtt_min_ns,
+            &self.rtt_p50_ns,
+            &self.clock_offset_ns,
+            &self.clock_delay_ns,
+        ] {
+            set(a, None);
+        }
+    }
+}
+
+/// Why a datagram was not sent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SendOutcome {
+    /// Handed to quinn.
+    Sent,
+    /// Larger than the connection's current maximum datagram size.
+    Oversized,
+    /// quinn refused it (connection lost, datagrams unsupported).
+    Failed,
+}
+
+/// The network task's datagram bookkeeping for one connection: the `protocol` [`Session`]
+/// (sequence numbers, echoes, RTT), a reused encode buffer, and the counters it publishes.
+#[derive(Debug)]
+pub struct DatagramLink {
+    session: Session,
+    buf: Vec<u8>,
+    stats: Arc<LinkStats>,
+    /// Sequence counts of this session already added to `stats`.
+    published: [u64; 5],
+    rtt_samples: u64,
+    rtt_window: Vec<i64>,
+}
+
+impl DatagramLink {
+    /// Fresh bookkeeping for a new connection (sequence numbers restart at 1).
+    pub fn new(stats: Arc<LinkStats>) -> DatagramLink {
+        stats.clear_session();
+        let published = std::array::from_fn(|i| stats.base[i].load(Relaxed));
+        DatagramLink {
+            session: Session::new(),
+            buf: Vec::with_capacity(protocol::MAX_DATAGRAM_BYTES),
+            stats,
+            published,
+            rtt_samples: 0,
+            rtt_window: Vec::with_capacity(RTT_WINDOW),
+        }
+    }
+
+    /// Fills `header` for a datagram sent now: sequence number, send time and echo from the
+    /// session; `header.sample_time_ns` (set by the real-time side) is kept.
+    pub fn stamp(&mut self, header: &mut Header, now_ns: i64) {
+        *header = self.session.next_header(header.sample_time_ns, now_ns);
+    }
+
+    /// Encodes with `encode` (into a reused buffer) and sends it as one datagram; counts the
+    /// outcome.
+    pub fn send(
+        &mut self,
+        connection: &quinn::Connection,
+        encode: impl FnOnce(&mut Vec<u8>),
+    ) -> SendOutcome {
+        encode(&mut self.buf);
+        let outcome = if connection
+            .max_datagram_size()
+            .is_none_or(|max| self.buf.len() > max)
+        {
+            SendOutcome::Oversized
+        } else if connection
+            .send_datagram(Bytes::copy_from_slice(&self.buf))
+            .is_ok()
+        {
+            SendOutcome::Sent
+        } else {
+            SendOutcome::Failed
+        };
+        let counter = match outcome {
+            SendOutcome::Sent => &self.stats.sent,
+            SendOutcome::Oversized => &self.stats.send_oversized,
+            SendOutcome::Failed => &self.stats.send_failed,
+        };
+        counter.fetch_add(1, Relaxed);
+        outcome
+    }
+
+    /// Takes in the header of a well-formed datagram received at `now_ns`; publishes the
+    /// sequence counts and RTT. Use the datagram only as the answer allows (see
+    /// [`protocol::session::LatestSeq`] for per-kind use).
+    pub fn on_header(&mut self, header: &Header, now_ns: i64) -> Arrival {
+        let arrival = self.session.on_receive(header, now_ns);
+        let s = *self.session.stats();
+        let values = [s.received, s.accepted, s.late, s.duplicates, s.lost()];
+        let targets = self.stats.sequence_counters();
+        for ((value, target), base) in values.iter().zip(targets).zip(&self.published) {
+            target.store(base + value, Relaxed);
+        }
+        let rtt = self.session.rtt();
+        if rtt.samples() != self.rtt_samples {
+            self.rtt_samples = rtt.samples();
+            set(&self.stats.rtt_latest_ns, rtt.latest_ns());
+            set(&self.stats.rtt_smoothed_ns, rtt.smoothed_ns());
+            set(&self.stats.rtt_min_ns, rtt.min_ns());
+            if let Some(sample) = rtt.latest_ns() {
+                if self.rtt_window.len() < RTT_WINDOW {
+                    self.rtt_window.push(sample);
+                } else {
+                    // A ring: overwrite the oldest.
+                    self.rtt_window[(self.rtt_samples % RTT_WINDOW as u64) as usize] = sample;
+                }
+            }
+        }
+        arrival
+    }
+
+    /// Publishes the median of the recent RTT samples (sorts a copy: call it at a low rate).
+    pub fn publish_rtt_median(&self) {
+        let mut sorted = self.rtt_window.clone();
+        sorted.sort_unstable();
+        set(
+            &self.stats.rtt_p50_ns,
+            sorted.get(sorted.len() / 2).copied(),
+        );
+    }
+
+    /// The session's bookkeeping.
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// The shared counters.
+    pub fn stats(&self) -> &LinkStats {
+        &self.stats
+    }
+}
+
+impl Drop for DatagramLink {
+    /// Folds this session's sequence counts into the base of the next.
+    fn drop(&mut self) {
+        for (base, target) in self.stats.base.iter().zip(self.stats.sequence_counters()) {
+            base.store(target.load(Relaxed), Relaxed);
+        }
+        self.stats.clear_session();
+    }
+}
