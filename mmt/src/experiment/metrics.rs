@@ -4,7 +4,7 @@ use super::ExperimentConfig;
 use crate::model::backsolve::Params;
 use crate::node::operator::{OperatorNode, OperatorOutput, OperatorStats};
 use crate::node::telerobot::{TelerobotNode, TelerobotStats};
-use crate::report::spectrum::band_rms;
+use crate::report::spectrum::bands_rms;
 use crate::vec3;
 use serde::Serialize;
 
@@ -265,27 +265,29 @@ pub fn analyse(
         (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
     };
     let after = render_start.unwrap_or(s.len());
+    let (mut e2, mut m2) = ([0.0; BANDS.len()], [0.0; BANDS.len()]);
+    for c in 0..3 {
+        let err: Vec<f64> = (after..s.len())
+            .map(|i| s.rendered[i][c] - measured(i)[c])
+            .collect();
+        let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
+        let (be, bm) = (bands_rms(&err, dt, &BANDS), bands_rms(&meas, dt, &BANDS));
+        for b in 0..BANDS.len() {
+            e2[b] += be[b] * be[b];
+            m2[b] += bm[b] * bm[b];
+        }
+    }
     let bands = BANDS
         .iter()
-        .map(|&(lo, hi)| {
-            let (mut e2, mut m2) = (0.0, 0.0);
-            for c in 0..3 {
-                let err: Vec<f64> = (after..s.len())
-                    .map(|i| s.rendered[i][c] - measured(i)[c])
-                    .collect();
-                let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
-                e2 += band_rms(&err, dt, lo, hi).powi(2);
-                m2 += band_rms(&meas, dt, lo, hi).powi(2);
-            }
-            Band {
-                lo_hz: lo,
-                hi_hz: hi,
-                rms_error_pct: if m2 > 0.0 {
-                    100.0 * (e2 / m2).sqrt()
-                } else {
-                    0.0
-                },
-            }
+        .enumerate()
+        .map(|(b, &(lo, hi))| Band {
+            lo_hz: lo,
+            hi_hz: hi,
+            rms_error_pct: if m2[b] > 0.0 {
+                100.0 * (e2[b] / m2[b]).sqrt()
+            } else {
+                0.0
+            },
         })
         .collect();
     let per_window = (1.0 / dt).round() as usize;

@@ -60,6 +60,7 @@ pub fn run(
     let ticks = (config.seconds * 1e9 / period as f64).round() as usize;
     let mut series = Series::with_capacity(ticks, world.frame().tangent2, period);
     let mut buf = Vec::with_capacity(1500);
+    let mut shared_clouds = std::collections::VecDeque::new();
     let mut robot = start;
     let mut report_every = (ticks / 100).max(1);
     for k in 0..ticks {
@@ -70,8 +71,24 @@ pub fn run(
                 if let Some(h) = message.header() {
                     operator.session().on_receive(h, now);
                 }
-                operator.on_message(&message, now);
-                shadow.on_message(&message, now);
+                match &message {
+                    // The decoded frame is bit-identical to the one the telerobot indexed: share
+                    // its kd-tree instead of building the same one again (the bytes still went
+                    // through the wire format).
+                    down::Message::Cloud(c)
+                        if shared_clouds
+                            .front()
+                            .is_some_and(|(id, _)| *id == c.frame_id) =>
+                    {
+                        if let Some((_, index)) = shared_clouds.pop_front() {
+                            operator.set_cloud(index);
+                        }
+                    }
+                    _ => {
+                        operator.on_message(&message, now);
+                        shadow.on_message(&message, now);
+                    }
+                }
             }
         }
         // 2. The operator.
@@ -99,11 +116,19 @@ pub fn run(
         robot = sample.truth.position_m;
         let frame = camera.frame(now, &world, robot, &sample.object_offset_m)?;
         let prior = telerobot.tangential_estimator().map(|e| e.theta());
+        let took_frame = frame.is_some();
         let messages = telerobot.step(now, target.command_sample_time_ns, &sample.measured, frame);
         for m in messages {
             buf.clear();
             down::encode_into(m, &mut buf);
             downlink.send(now as u64, buf.clone(), buf.len());
+        }
+        if took_frame && let Some(shared) = telerobot.latest_cloud() {
+            shared_clouds.push_back(shared);
+            // Frames lost on the link would leave their index here: keep the queue short.
+            while shared_clouds.len() > 64 {
+                shared_clouds.pop_front();
+            }
         }
         let reconstruction = match (prior, telerobot.tangential_estimator()) {
             (Some(theta), Some(est))

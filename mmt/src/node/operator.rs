@@ -25,6 +25,7 @@ use protocol::operator_to_telerobot::Command;
 use protocol::session::Session;
 use protocol::telerobot_to_operator::{self as wire, Message};
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// How the operator decides contact and keeps in step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -106,7 +107,7 @@ pub struct OperatorNode {
     settings: NodeSettings,
     config: OperatorConfig,
     proxy: Proxy,
-    cloud: Option<CloudIndex>,
+    cloud: Option<Arc<CloudIndex>>,
     tracker: ContactTracker,
     remote: Option<wire::Contact>,
     normal: Option<KelvinVoigtRenderer>,
@@ -181,6 +182,9 @@ impl OperatorNode {
     /// Installs a cloud: builds its index (the daemon may instead build it off the haptic thread
     /// and call [`Self::set_cloud`]).
     fn on_cloud(&mut self, frame: &wire::CloudFrame) {
+        if !self.config.local_contact {
+            return; // contact comes from the telerobot: the cloud is not needed here
+        }
         let built = crate::cloud::CloudFrame::new(
             frame.points.clone(),
             frame.timestamp_ns,
@@ -189,13 +193,13 @@ impl OperatorNode {
         .ok()
         .and_then(|f| CloudIndex::build(&f).ok());
         match built {
-            Some(index) => self.set_cloud(index),
+            Some(index) => self.set_cloud(Arc::new(index)),
             None => self.stats.rejected_clouds += 1,
         }
     }
 
-    /// Installs an already built cloud index.
-    pub fn set_cloud(&mut self, index: CloudIndex) {
+    /// Installs an already built cloud index (built off the haptic thread, or shared).
+    pub fn set_cloud(&mut self, index: Arc<CloudIndex>) {
         self.cloud = Some(index);
         self.stats.clouds += 1;
     }
@@ -360,7 +364,7 @@ impl OperatorNode {
         if self.config.local_contact
             && let Some(cloud) = &self.cloud
         {
-            let out = self.proxy.step(position_m, cloud);
+            let out = self.proxy.step(position_m, cloud.as_ref());
             return self.tracker.update(&out, position_m);
         }
         // Remote contact (the thesis): the telerobot's state as it arrives, its frame and surface.

@@ -22,6 +22,7 @@ use crate::sim::world::Sample3;
 use crate::vec3;
 use protocol::session::Session;
 use protocol::telerobot_to_operator::{self as wire, AxisState, Message};
+use std::sync::Arc;
 
 /// Normal force on the tool above which the normal contact counts as loaded [N]: three standard
 /// deviations of the Franka-like force noise.
@@ -76,7 +77,7 @@ pub struct TelerobotStats {
 pub struct TelerobotNode {
     settings: NodeSettings,
     proxy: Proxy,
-    cloud: Option<CloudIndex>,
+    cloud: Option<Arc<CloudIndex>>,
     tracker: ContactTracker,
     normal: Option<Estimator>,
     tangential: Option<Estimator>,
@@ -197,7 +198,7 @@ impl TelerobotNode {
             return &self.out;
         }
         let detected = match &self.cloud {
-            Some(cloud) => self.proxy.step(sample.position_m, cloud),
+            Some(cloud) => self.proxy.step(sample.position_m, cloud.as_ref()),
             None => geometric_contact(&self.settings, sample.position_m),
         };
         let tracked = self.tracker.update(&detected, sample.position_m);
@@ -228,7 +229,7 @@ impl TelerobotNode {
                     sensor_orientation_xyzw: pose.quaternion_xyzw(),
                     points: frame.into_points(),
                 }));
-                self.cloud = Some(index);
+                self.cloud = Some(Arc::new(index));
             }
             Err(_) => self.stats.rejected_clouds += 1,
         }
@@ -362,6 +363,12 @@ impl TelerobotNode {
             force_on_tool_n: sample.force_n,
             in_contact: tracked.in_contact,
         }));
+    }
+
+    /// The index of the last camera frame and the id it was sent with (an operator receiving
+    /// the same frame may share it instead of building its own).
+    pub fn latest_cloud(&self) -> Option<(u64, Arc<CloudIndex>)> {
+        self.cloud.as_ref().map(|c| (self.frame_id, Arc::clone(c)))
     }
 
     /// The protocol session (sequence numbers, echoes, RTT).

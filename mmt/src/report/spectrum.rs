@@ -50,25 +50,35 @@ pub fn spectrum(signal: &[f64], dt_s: f64) -> Vec<(f64, Complex64)> {
 /// The RMS of the part of `signal` between `lo_hz` (inclusive) and `hi_hz` (exclusive), by
 /// Parseval on the zero-padded spectrum, normalised by the signal's own length.
 pub fn band_rms(signal: &[f64], dt_s: f64, lo_hz: f64, hi_hz: f64) -> f64 {
+    bands_rms(signal, dt_s, &[(lo_hz, hi_hz)])[0]
+}
+
+/// [`band_rms`] for several bands from one FFT.
+pub fn bands_rms(signal: &[f64], dt_s: f64, bands: &[(f64, f64)]) -> Vec<f64> {
     if signal.is_empty() {
-        return 0.0;
+        return vec![0.0; bands.len()];
     }
     let n_pad = signal.len().next_power_of_two().max(2) as f64;
     let spec = spectrum(signal, dt_s);
     let last = spec.len() - 1;
-    let energy: f64 = spec
+    bands
         .iter()
-        .enumerate()
-        .filter(|(_, (f, _))| *f >= lo_hz && *f < hi_hz)
-        .map(|(k, (_, c))| {
-            if k == 0 || k == last {
-                c.norm_sqr()
-            } else {
-                2.0 * c.norm_sqr()
-            }
+        .map(|&(lo_hz, hi_hz)| {
+            let energy: f64 = spec
+                .iter()
+                .enumerate()
+                .filter(|(_, (f, _))| *f >= lo_hz && *f < hi_hz)
+                .map(|(k, (_, c))| {
+                    if k == 0 || k == last {
+                        c.norm_sqr()
+                    } else {
+                        2.0 * c.norm_sqr()
+                    }
+                })
+                .sum();
+            (energy / (n_pad * signal.len() as f64)).sqrt()
         })
-        .sum();
-    (energy / (n_pad * signal.len() as f64)).sqrt()
+        .collect()
 }
 
 #[cfg(test)]
