@@ -148,13 +148,38 @@ pub(crate) fn local_surface(
             };
         }
     }
+    // The surface point: weighted by the distance *along the surface* once the normal is known.
+    // Weights by the 3-D distance favour the points noise moved toward the proxy, which puts the
+    // surface too close to it by a fraction of the noise (a −5 % stiffness bias on a 2000 N/m
+    // wall at 0.5 mm noise, measured); in-plane distances do not depend on that noise.
+    let centroid = match normal {
+        Some(n) => in_plane_centroid(centre, neighbours, &psi, n),
+        None => None,
+    }
+    .or_else(|| {
+        (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
+    });
     LocalSurface {
         normal,
-        centroid: (sums.weight > 0.0)
-            .then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight))),
+        centroid,
         nearest_d2: sums.nearest_d2,
         count: sums.count,
     }
+}
+
+/// `Σψ(|y − (y·n) n|) x / Σψ`: the centroid weighted by in-plane distance.
+fn in_plane_centroid(centre: V3, neighbours: &[Neighbour], psi: &Wendland, n: V3) -> Option<V3> {
+    let (mut weight, mut m1) = (0.0, [0.0; 3]);
+    for nb in neighbours {
+        let y = vec3::sub(nb.point, centre);
+        let along = vec3::sub(y, vec3::scale(n, vec3::dot(y, n)));
+        let w = psi.weight(vec3::norm(along));
+        if w > 0.0 && vec3::norm2(y) < psi.r3 * psi.r3 {
+            weight += w;
+            m1 = vec3::add(m1, vec3::scale(y, w));
+        }
+    }
+    (weight > 0.0).then(|| vec3::add(centre, vec3::scale(m1, 1.0 / weight)))
 }
 
 /// Eq. 15 with its constant `1/(r3 − r1)` folded.

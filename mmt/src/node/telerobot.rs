@@ -94,6 +94,7 @@ pub struct TelerobotNode {
     episode_onset_ns: Option<i64>,
     frame_id: u64,
     last_frame: Option<SurfaceFrame>,
+    shear_anchor: [f64; 2],
     stats: TelerobotStats,
 }
 
@@ -128,6 +129,7 @@ impl TelerobotNode {
             episode_onset_ns: None,
             frame_id: 0,
             last_frame: None,
+            shear_anchor: [0.0; 2],
             stats: TelerobotStats::default(),
             settings,
         })
@@ -257,11 +259,20 @@ impl TelerobotNode {
             }
         }
         let tangents = [frame.tangent1, frame.tangent2];
-        let samples = tangents.map(|axis| AxisSample {
+        let mut samples = tangents.map(|axis| AxisSample {
             position_m: vec3::dot(sample.position_m, axis),
             velocity_m_per_s: vec3::dot(sample.velocity_m_per_s, axis),
             force_n: vec3::dot(sample.force_n, axis),
         });
+        if self.settings.tangential.structure == Structure::KelvinVoigt {
+            // An anchored element: its law is in the displacement from where contact began.
+            if tracked.onset {
+                self.shear_anchor = [samples[0].position_m, samples[1].position_m];
+            }
+            for (s, a) in samples.iter_mut().zip(self.shear_anchor) {
+                s.position_m -= a;
+            }
+        }
         if let Some(est) = &mut self.tangential {
             let u = est.step(t, &samples, in_contact);
             if u.new_object {

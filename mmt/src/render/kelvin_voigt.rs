@@ -103,8 +103,9 @@ impl KelvinVoigtRenderer {
 
 /// A Kelvin–Voigt element anchored where contact began, bilateral: the tangential axes of an
 /// object that does not move (a wall holding the tool in its compliant surface). The anchor is
-/// placed so the force starts at 0 (`k (x − a) + b ẋ = 0` at onset), the same convention as the
-/// sliding-mass renderer and the simulator.
+/// the position at onset, the simulator's convention (the damping force `b ẋ` may jump there,
+/// as a Kelvin–Voigt contact's does; a preload to cancel it would leave a per-episode constant
+/// the telerobot's regression cannot represent).
 #[derive(Clone, Debug)]
 pub struct ShearRenderer {
     inner: KelvinVoigtRenderer,
@@ -148,14 +149,7 @@ impl ShearRenderer {
             return self.inner.step(f64::NAN, 0.0, false);
         }
         if in_contact && !self.in_contact {
-            let kv = self.inner.current.or(self.inner.target);
-            self.anchor_m = x + kv.map_or(0.0, |kv| {
-                if kv.k_n_per_m > 0.0 {
-                    kv.b_ns_per_m * v / kv.k_n_per_m
-                } else {
-                    0.0
-                }
-            });
+            self.anchor_m = x;
         }
         self.in_contact = in_contact;
         // The inner renderer is unilateral along its axis; run it on the magnitude and restore

@@ -8,7 +8,8 @@
 //!   unilateral, `F·n = max(0, k2 p + b2 ṗ)` (thesis eq. 8);
 //! - **tangential axes**: each a [`SlidingObjectSim`] — the object dragged through its contact
 //!   element and sliding on the table with Karnopp friction (thesis set-up 1); for an anchored
-//!   object (a wall) a Kelvin–Voigt element anchored where contact began.
+//!   object (a wall) a Kelvin–Voigt element anchored where contact began (no preload: the
+//!   regression then needs no per-episode constant).
 //!
 //! The robot tracks the commanded position exactly (the thesis's set-up 1 sends positions "directly
 //! to the surface of an in-simulation object"). Every axis's measurement passes through the
@@ -171,8 +172,9 @@ impl World {
                     sensors,
                 } => {
                     if in_contact && !*was {
-                        // Onset: the anchor is placed so the force starts at exactly 0.
-                        *rest_m = last[0] + if *k > 0.0 { *b * last[1] / *k } else { 0.0 };
+                        // Onset: the element is anchored where contact began (its damping force
+                        // may jump, as a Kelvin–Voigt contact's does).
+                        *rest_m = x[i];
                     }
                     *was = in_contact;
                     *last = [x[i], v[i]];
