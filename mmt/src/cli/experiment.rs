@@ -39,6 +39,18 @@ pub struct ExperimentArgs {
     /// Disable state sync.
     #[arg(long)]
     no_sync: bool,
+    /// Uniform jitter each way [ms] (order kept).
+    #[arg(long, default_value_t = 0.0)]
+    jitter_ms: f64,
+    /// Random loss each way [%].
+    #[arg(long, default_value_t = 0.0)]
+    loss_pct: f64,
+    /// Duplicated datagrams each way [%].
+    #[arg(long, default_value_t = 0.0)]
+    duplicate_pct: f64,
+    /// Datagrams sent ahead of their turn each way [%] (needs a delay).
+    #[arg(long, default_value_t = 0.0)]
+    reorder_pct: f64,
 }
 
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
@@ -62,26 +74,60 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     }
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
+    config.jitter_ms = args.jitter_ms;
+    config.loss = args.loss_pct / 100.0;
+    config.duplicate = args.duplicate_pct / 100.0;
+    config.reorder = args.reorder_pct / 100.0;
+    // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
+    let bar = (config.seconds >= 100.0 && !args.json).then(|| {
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% eta {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
+        bar
+    });
     let started = Instant::now();
-    let (series, report) = run(&config, &mut |_| {})?;
+    let (series, report) = run(&config, &mut |f| {
+        if let Some(bar) = &bar {
+            bar.set_position((f * 1000.0) as u64);
+        }
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let timing = serde_json::json!({
+        "sim_seconds": report.sim_seconds,
+        "wall_seconds": wall,
+        "real_time_factor": report.sim_seconds / wall,
+    });
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)?;
-        std::fs::write(dir.join("series.csv"), series.to_csv())?;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (name, bytes) in mmt::report::experiment::files(&report, &series)? {
+            let path = dir.join(name);
+            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        }
+        // Wall-clock time lives apart so report.json is bit-for-bit reproducible.
         std::fs::write(
-            dir.join("report.json"),
-            serde_json::to_string_pretty(&report)?,
+            dir.join("timing.json"),
+            serde_json::to_string_pretty(&timing)?,
         )?;
     }
-    let wall = started.elapsed().as_secs_f64();
     if args.json {
         let mut v = serde_json::to_value(&report)?;
-        v["wall_seconds"] = serde_json::json!(wall);
+        v["wall_seconds"] = timing["wall_seconds"].clone();
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        print!("{}", mmt::report::experiment::table(&report));
         println!(
-            "wall {wall:.2} s ({:.0}× real time)",
-            report.sim_seconds / wall
+            "{:.0} s simulated in {wall:.2} s ({:.0}× real time){}",
+            report.sim_seconds,
+            report.sim_seconds / wall,
+            args.out
+                .as_ref()
+                .map_or(String::new(), |d| format!("; files in {}", d.display()))
         );
     }
     Ok(())

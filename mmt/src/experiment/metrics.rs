@@ -1,10 +1,11 @@
 //! What an experiment records and what the report computes from it.
 
-use super::ExperimentConfig;
 use crate::model::backsolve::Params;
-use crate::node::operator::{OperatorNode, OperatorOutput, OperatorStats};
-use crate::node::telerobot::{TelerobotNode, TelerobotStats};
+use crate::model::gates::Gated;
+use crate::node::operator::{OperatorOutput, OperatorStats};
+use crate::node::telerobot::TelerobotStats;
 use crate::report::spectrum::bands_rms;
+use crate::scene::Scene;
 use crate::vec3;
 use serde::Serialize;
 
@@ -15,6 +16,8 @@ pub struct Series {
     pub period_ns: i64,
     /// The scene's second tangent: the thesis's "y" axis, for plots.
     pub axis: [f64; 3],
+    /// The scene's surface normal, for plots.
+    pub normal: [f64; 3],
     /// Device position [m].
     pub position: Vec<[f64; 3]>,
     /// Force rendered by the operator node [N].
@@ -42,10 +45,13 @@ pub struct Series {
 }
 
 impl Series {
-    pub(super) fn with_capacity(n: usize, axis: [f64; 3], period_ns: i64) -> Self {
+    /// An empty series for `n` ticks of `period_ns`; `axis` is the tangent plotted as the
+    /// thesis's "y".
+    pub fn with_capacity(n: usize, axis: [f64; 3], normal: [f64; 3], period_ns: i64) -> Self {
         Series {
             period_ns,
             axis,
+            normal,
             position: Vec::with_capacity(n),
             rendered: Vec::with_capacity(n),
             rendered_remote: Vec::with_capacity(n),
@@ -61,9 +67,10 @@ impl Series {
         }
     }
 
-    pub(super) fn push_operator(
+    /// Records an operator tick (and the shadow node's, when there is one: pass the same output
+    /// twice otherwise).
+    pub fn push_operator(
         &mut self,
-        _now: i64,
         position: [f64; 3],
         out: &OperatorOutput,
         remote: &OperatorOutput,
@@ -76,8 +83,11 @@ impl Series {
         self.rendering.push(out.rendering);
     }
 
+    /// Records what the telerobot measured while executing the command sampled at
+    /// `command_time_ns` (the first report for a command counts), its stability and the
+    /// reconstruction sums of its tick, and the operator's tangential state of the same tick.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn push_telerobot(
+    pub fn push_telerobot(
         &mut self,
         command_time_ns: i64,
         force: [f64; 3],
@@ -183,7 +193,7 @@ pub struct ThesisFigures {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ExperimentReport {
     /// Experiment name.
-    pub experiment: &'static str,
+    pub experiment: String,
     /// Scene name.
     pub scene: String,
     /// Trajectory name.
@@ -234,14 +244,36 @@ pub struct ExperimentReport {
 /// The bands of the report [Hz].
 pub const BANDS: [(f64, f64); 3] = [(0.0, 0.3), (0.3, 1.0), (1.0, 4.0)];
 
+/// What a run was, for its report.
+#[derive(Clone, Debug)]
+pub struct RunInfo<'a> {
+    /// Experiment name (`exp1`, …, or `networked`).
+    pub experiment: String,
+    /// The scene (ground truth, left-out terms).
+    pub scene: &'a Scene,
+    /// Trajectory name.
+    pub trajectory: String,
+    /// Seed.
+    pub seed: u64,
+    /// One-way delay [ms].
+    pub delay_ms: f64,
+}
+
+/// What the nodes know, for the report.
+#[derive(Clone, Debug, Default)]
+pub struct NodeInfo {
+    /// Estimated against true parameters.
+    pub parameters: Vec<ParameterReport>,
+    /// Operator node counters.
+    pub operator: OperatorStats,
+    /// Shadow node counters.
+    pub shadow: OperatorStats,
+    /// Telerobot node counters.
+    pub telerobot: TelerobotStats,
+}
+
 /// Computes the report of a run.
-pub fn analyse(
-    config: &ExperimentConfig,
-    s: &Series,
-    telerobot: &TelerobotNode,
-    operator: &OperatorNode,
-    shadow: &OperatorNode,
-) -> ExperimentReport {
+pub fn analyse(info: &RunInfo<'_>, s: &Series, nodes: NodeInfo) -> ExperimentReport {
     let dt = s.dt_s();
     let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
     let render_start = s.rendering.iter().position(|r| *r);
@@ -316,11 +348,11 @@ pub fn analyse(
         _ => None,
     };
     ExperimentReport {
-        experiment: config.kind.name(),
-        scene: config.scene.name.clone(),
-        trajectory: config.trajectory.clone(),
-        seed: config.seed,
-        delay_ms: config.delay_ms,
+        experiment: info.experiment.clone(),
+        scene: info.scene.name.clone(),
+        trajectory: info.trajectory.clone(),
+        seed: info.seed,
+        delay_ms: info.delay_ms,
         rms_error_pct: first_contact.and_then(|fc| rms_pct(fc, &s.rendered, None)),
         rms_error_pct_after_stable: rms_pct(after, &s.rendered, None),
         tangential_rms_error_pct_after_stable: rms_pct(after, &s.rendered, Some(s.axis)),
@@ -336,19 +368,19 @@ pub fn analyse(
             .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
         contact_switch_latency_ms: latency(s),
         deflection_rms_error_m: deflection_error(s),
-        parameters: parameters(config, telerobot),
-        left_out: config.scene.left_out(),
+        parameters: nodes.parameters,
+        left_out: info.scene.left_out(),
         sim_seconds: s.len() as f64 * dt,
         thesis: ThesisFigures {
             rms_error_low_freq_pct: 30.0,
             rms_error_high_freq_pct: 100.0,
             reconstruction_error_pct: 5.0,
             time_to_stable_s: 16.1,
-            contact_switch_latency_ms: 2.0 * config.delay_ms,
+            contact_switch_latency_ms: 2.0 * info.delay_ms,
         },
-        operator_stats: operator.stats(),
-        shadow_stats: shadow.stats(),
-        telerobot_stats: telerobot.stats(),
+        operator_stats: nodes.operator,
+        shadow_stats: nodes.shadow,
+        telerobot_stats: nodes.telerobot,
     }
 }
 
@@ -425,8 +457,9 @@ fn deflection_error(s: &Series) -> Option<f64> {
     (n > 0).then(|| (e2 / n as f64).sqrt())
 }
 
-fn parameters(config: &ExperimentConfig, telerobot: &TelerobotNode) -> Vec<ParameterReport> {
-    let env = config.scene.environment;
+/// Estimated against the scene's true parameters, for the sets given (normal, tangential).
+pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<ParameterReport> {
+    let env = scene.environment;
     let rel = |est: f64, truth: f64| {
         if truth != 0.0 {
             100.0 * (est - truth) / truth
@@ -436,13 +469,8 @@ fn parameters(config: &ExperimentConfig, telerobot: &TelerobotNode) -> Vec<Param
     };
     let row = |name: &str, truth: f64, est: f64| (name.to_string(), truth, est, rel(est, truth));
     let mut out = Vec::new();
-    for (axes, est) in [
-        ("normal", telerobot.normal_estimator()),
-        ("tangential", telerobot.tangential_estimator()),
-    ] {
-        let Some(latest) = est.and_then(|e| e.latest()) else {
-            continue;
-        };
+    for (axes, latest) in ["normal", "tangential"].into_iter().zip(sets) {
+        let Some(latest) = latest else { continue };
         let values = match latest.params() {
             Params::KelvinVoigt(kv) => vec![
                 row("k", env.k_contact_n_per_m, kv.k_n_per_m),

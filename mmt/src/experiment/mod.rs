@@ -19,7 +19,10 @@
 mod metrics;
 mod run;
 
-pub use metrics::{Band, ContactLatency, ExperimentReport, Series, analyse};
+pub use metrics::{
+    Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series, analyse,
+    parameter_report,
+};
 pub use run::run;
 
 use crate::node::operator::OperatorConfig;
@@ -89,6 +92,11 @@ pub struct ExperimentConfig {
     pub jitter_ms: f64,
     /// Random loss each way, fraction.
     pub loss: f64,
+    /// Duplicated datagrams each way, fraction.
+    pub duplicate: f64,
+    /// Datagrams sent ahead of their turn each way (netem reorder, gap 5), fraction; needs a
+    /// delay.
+    pub reorder: f64,
     /// Simulated time [s].
     pub seconds: f64,
     /// Seed of the sensor noise, the cloud noise and the link.
@@ -108,6 +116,8 @@ impl ExperimentConfig {
             delay_ms: kind.default_delay_ms(),
             jitter_ms: 0.0,
             loss: 0.0,
+            duplicate: 0.0,
+            reorder: 0.0,
             seconds: 60.0,
             seed: 1,
             trajectory: kind.default_trajectory().to_string(),
@@ -149,6 +159,18 @@ impl ExperimentConfig {
             "loss",
             self.loss,
             (0.0..0.5).contains(&self.loss),
+            "a fraction in [0, 0.5)",
+        )?;
+        field(
+            "duplicate",
+            self.duplicate,
+            (0.0..0.5).contains(&self.duplicate),
+            "a fraction in [0, 0.5)",
+        )?;
+        field(
+            "reorder",
+            self.reorder,
+            (0.0..0.5).contains(&self.reorder),
             "a fraction in [0, 0.5)",
         )
     }

@@ -1,6 +1,6 @@
 //! The tick loop of the harness.
 
-use super::metrics::{Series, analyse};
+use super::metrics::{NodeInfo, RunInfo, Series, analyse, parameter_report};
 use super::{ExperimentConfig, ExperimentError, ExperimentReport};
 use crate::cloud::{CloudFrame, Pose};
 use crate::model::col;
@@ -51,6 +51,11 @@ pub fn run(
                 probability: config.loss,
             };
         }
+        c.duplicate_probability = config.duplicate;
+        if config.reorder > 0.0 {
+            c.reorder_probability = config.reorder;
+            c.reorder_gap = 5;
+        }
         Channel::<Vec<u8>>::new(c, config.seed.wrapping_add(seed_offset))
             .map_err(|e| ExperimentError::Link(e.to_string()))
     };
@@ -58,7 +63,8 @@ pub fn run(
     let mut downlink = link(202)?;
     let mut camera = Camera::new(config);
     let ticks = (config.seconds * 1e9 / period as f64).round() as usize;
-    let mut series = Series::with_capacity(ticks, world.frame().tangent2, period);
+    let mut series =
+        Series::with_capacity(ticks, world.frame().tangent2, world.frame().normal, period);
     let mut buf = Vec::with_capacity(1500);
     let mut shared_clouds = std::collections::VecDeque::new();
     let mut robot = start;
@@ -98,7 +104,7 @@ pub fn run(
         buf.clear();
         up::encode_into(&up::Message::Command(out.command), &mut buf);
         uplink.send(now as u64, buf.clone(), buf.len());
-        series.push_operator(now, device.position_m, &out, &remote);
+        series.push_operator(device.position_m, &out, &remote);
         // 3. Uplink arrivals, the robot, the camera.
         while let Some(bytes) = uplink.recv_due(now as u64) {
             if let Ok(up::Message::Command(c)) = up::decode(&bytes) {
@@ -165,7 +171,25 @@ pub fn run(
         }
     }
     progress(1.0);
-    let report = analyse(config, &series, &telerobot, &operator, &shadow);
+    let info = RunInfo {
+        experiment: config.kind.name().to_string(),
+        scene: &config.scene,
+        trajectory: config.trajectory.clone(),
+        seed: config.seed,
+        delay_ms: config.delay_ms,
+    };
+    let latest = |e: Option<&crate::estimator::Estimator>| e.and_then(|e| e.latest()).copied();
+    let (normal, tangential) = (
+        latest(telerobot.normal_estimator()),
+        latest(telerobot.tangential_estimator()),
+    );
+    let nodes = NodeInfo {
+        parameters: parameter_report(&config.scene, [normal.as_ref(), tangential.as_ref()]),
+        operator: operator.stats(),
+        shadow: shadow.stats(),
+        telerobot: telerobot.stats(),
+    };
+    let report = analyse(&info, &series, nodes);
     Ok((series, report))
 }
 

@@ -16,6 +16,7 @@
 
 mod history;
 pub mod operator;
+mod playout;
 pub mod telerobot;
 mod tracker;
 mod wire;
@@ -99,3 +100,5 @@ impl NodeSettings {
         }
     }
 }
+#[cfg(test)]
+mod tests;

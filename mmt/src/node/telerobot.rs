@@ -11,6 +11,7 @@
 //!    every 100 ms), `StateSync` every 10 ms in contact, `Cloud` for each camera frame.
 
 use super::NodeSettings;
+use super::playout::{Playout, Push};
 use super::tracker::{ContactTracker, Tracked};
 use super::wire::{contact_state_to_wire, parameter_set, surface_frame_to_wire};
 use crate::cloud::CloudFrame;
@@ -63,8 +64,10 @@ pub struct TelerobotStats {
     pub holding_ticks: u64,
     /// Commands accepted.
     pub commands: u64,
-    /// Commands dropped as older than the newest.
+    /// Commands dropped: duplicates, older than the one executing, or not finite.
     pub stale_commands: u64,
+    /// Commands passed over because a newer one's turn had come (backlog after a stall).
+    pub skipped_commands: u64,
     /// Samples with a non-finite value (dropped).
     pub rejected_samples: u64,
     /// Camera frames that could not be indexed.
@@ -82,7 +85,7 @@ pub struct TelerobotNode {
     normal: Option<Estimator>,
     tangential: Option<Estimator>,
     observer: [Observer; 2],
-    command: Option<CommandSample>,
+    playout: Playout,
     hold_position: Option<[f64; 3]>,
     session: Session,
     out: Vec<Message>,
@@ -117,7 +120,7 @@ impl TelerobotNode {
             normal: estimator(&settings.normal)?,
             tangential: estimator(&settings.tangential)?,
             observer: [Observer::default(); 2],
-            command: None,
+            playout: Playout::new(),
             hold_position: None,
             session: Session::new(),
             out: Vec::with_capacity(8),
@@ -135,28 +138,39 @@ impl TelerobotNode {
         })
     }
 
-    /// A command arrived. Older ones than the newest are dropped (datagrams may reorder).
+    /// A command arrived. It is held until its turn ([`super::playout`]); duplicates, commands
+    /// older than the one executing and non-finite ones are dropped and counted.
     pub fn on_command(&mut self, command: CommandSample) {
         let finite = command
             .position_m
             .iter()
             .chain(&command.velocity_m_per_s)
             .all(|v| v.is_finite());
-        match self.command {
-            Some(c) if command.sample_time_ns <= c.sample_time_ns => self.stats.stale_commands += 1,
-            _ if !finite => self.stats.stale_commands += 1,
-            _ => {
-                self.command = Some(command);
+        if !finite {
+            self.stats.stale_commands += 1;
+            return;
+        }
+        match self.playout.push(command) {
+            Push::Stale => self.stats.stale_commands += 1,
+            Push::Queued => self.stats.commands += 1,
+            Push::Overflow => {
                 self.stats.commands += 1;
+                self.stats.skipped_commands += 1;
             }
         }
     }
 
-    /// Where the robot should be this tick: the latest command, or — when it is older than the
-    /// timeout, or none came yet — hold still where the robot is.
+    /// Where the robot should be this tick: the command whose turn it is, or — when no command
+    /// arrived for longer than the timeout, or none came yet — hold still where the robot is.
     pub fn target(&mut self, now_ns: i64, robot_position_m: [f64; 3]) -> Target {
-        match self.command {
-            Some(c) if now_ns - c.received_ns <= self.settings.command_timeout_ns => {
+        let (current, skipped) = self.playout.advance(now_ns);
+        self.stats.skipped_commands += skipped as u64;
+        let fresh = self
+            .playout
+            .last_received_ns()
+            .is_some_and(|r| now_ns - r <= self.settings.command_timeout_ns);
+        match current {
+            Some(c) if fresh => {
                 self.hold_position = None;
                 Target {
                     position_m: c.position_m,

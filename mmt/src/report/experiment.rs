@@ -1,0 +1,226 @@
+//! The experiment report as people read it: a table for stdout, and the files of `--out DIR`
+//! (`report.json`, `series.csv`, plots as SVG and PNG). Built in memory; the caller writes them.
+//! Used by `mmt experiment` and by the networked operator app, so both print the same report.
+
+use super::plot::{Panel, PlotError, Series as Line, png, svg};
+use super::spectrum::spectrum;
+use crate::experiment::{ExperimentReport, Series};
+use crate::vec3;
+use std::fmt::Write;
+
+/// The stdout table: this run's figures next to the thesis's.
+pub fn table(r: &ExperimentReport) -> String {
+    let pct = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2} %"));
+    let sec = |v: Option<f64>| v.map_or("never".to_string(), |v| format!("{v:.2} s"));
+    let ms = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1} ms"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{} on scene {} — trajectory {}, {:.0} s simulated, seed {}, one-way delay {} ms",
+        r.experiment, r.scene, r.trajectory, r.sim_seconds, r.seed, r.delay_ms
+    );
+    let _ = writeln!(out, "{:<46} {:>14}   thesis", "", "this run");
+    let mut row = |name: &str, value: String, thesis: &str| {
+        let _ = writeln!(out, "{name:<46} {value:>14}   {thesis}");
+    };
+    row("RMS error, from first contact", pct(r.rms_error_pct), "—");
+    row(
+        "RMS error, after the parameters are stable",
+        pct(r.rms_error_pct_after_stable),
+        "~30 % low freq., up to 100 % high",
+    );
+    row(
+        "  tangential axis (the thesis's y) only",
+        pct(r.tangential_rms_error_pct_after_stable),
+        "",
+    );
+    for b in &r.bands {
+        row(
+            &format!("  band {:.1}–{:.1} Hz", b.lo_hz, b.hi_hz),
+            pct(Some(b.rms_error_pct)),
+            if b.hi_hz <= 0.3 {
+                "< 0.25 N, ~30 %"
+            } else {
+                "~1 N plateau, up to 100 %"
+            },
+        );
+    }
+    row(
+        "RMS error with remote-only contact (thesis way)",
+        pct(r.rms_error_pct_remote_contact),
+        "",
+    );
+    row(
+        "time to stable parameters",
+        sec(r.time_to_stable_s),
+        "16.1 s (exp 2)",
+    );
+    row(
+        "rendering starts after first contact",
+        sec(r.render_start_s),
+        "",
+    );
+    row(
+        "estimator reconstruction error",
+        pct(r.reconstruction_error_pct),
+        "~5 % (exp 2)",
+    );
+    let l = &r.contact_switch_latency_ms;
+    row(
+        "contact switch latency, operator-side detection",
+        ms(l.local),
+        "—",
+    );
+    row(
+        "contact switch latency, remote state only",
+        ms(l.remote_only),
+        &format!(
+            "a round trip ({:.0} ms)",
+            r.thesis.contact_switch_latency_ms
+        ),
+    );
+    for p in &r.parameters {
+        let values: Vec<String> = p
+            .values
+            .iter()
+            .map(|(name, truth, est, err)| {
+                if err.is_finite() {
+                    format!("{name} {est:.4} ({truth}, {err:+.1} %)")
+                } else {
+                    format!("{name} {est:.4} ({truth})")
+                }
+            })
+            .collect();
+        let _ = writeln!(out, "parameters, {}: {}", p.axes, values.join(", "));
+    }
+    if !r.left_out.is_empty() {
+        let _ = writeln!(out, "left out: {}", r.left_out.join("; "));
+    }
+    out
+}
+
+/// The files of a run: `report.json` (deterministic: no wall-clock figure), `series.csv`, and
+/// `force`, `error` and `spectrum` plots, each as SVG and PNG.
+pub fn files(r: &ExperimentReport, s: &Series) -> Result<Vec<(String, Vec<u8>)>, PlotError> {
+    let json = serde_json::to_string_pretty(r).map_err(|e| PlotError::Draw(e.to_string()))?;
+    let mut out = vec![
+        ("report.json".to_string(), json.into_bytes()),
+        ("series.csv".to_string(), s.to_csv().into_bytes()),
+    ];
+    for (name, panels, columns, size) in [
+        ("force", force_panels(s), 1, (1400, 800)),
+        ("error", error_panels(r), 1, (1000, 450)),
+        ("spectrum", spectrum_panels(s), 1, (1000, 550)),
+    ] {
+        out.push((
+            format!("{name}.svg"),
+            svg(&panels, columns, size)?.into_bytes(),
+        ));
+        out.push((format!("{name}.png"), png(&panels, columns, size)?));
+    }
+    Ok(out)
+}
+
+/// At most this many points per plotted line (the CSV keeps every sample).
+const PLOT_POINTS: usize = 6000;
+
+fn decimated(s: &Series, f: impl Fn(usize) -> Option<f64>) -> Vec<(f64, f64)> {
+    let step = s.len().div_ceil(PLOT_POINTS).max(1);
+    (0..s.len())
+        .step_by(step)
+        .filter_map(|i| f(i).map(|v| (i as f64 * s.dt_s(), v)))
+        .collect()
+}
+
+fn force_panels(s: &Series) -> Vec<Panel> {
+    let along = |v: [f64; 3]| vec3::dot(v, s.axis);
+    let normal = |v: [f64; 3]| vec3::dot(v, s.normal);
+    let mut panels = vec![Panel {
+        title: "force along the tangential axis (rendered shifted back by the delay)".into(),
+        x_label: "command time [s]".into(),
+        y_label: "force on tool [N]".into(),
+        log_x: false,
+        log_y: false,
+        series: vec![
+            line("measured", decimated(s, |i| s.measured[i].map(along))),
+            line("rendered", decimated(s, |i| Some(along(s.rendered[i])))),
+            line(
+                "rendered, remote-only contact",
+                decimated(s, |i| Some(along(s.rendered_remote[i]))),
+            ),
+        ],
+    }];
+    panels.push(Panel {
+        title: "force along the surface normal".into(),
+        x_label: "command time [s]".into(),
+        y_label: "force on tool [N]".into(),
+        log_x: false,
+        log_y: false,
+        series: vec![
+            line("measured", decimated(s, |i| s.measured[i].map(normal))),
+            line("rendered", decimated(s, |i| Some(normal(s.rendered[i])))),
+            line(
+                "rendered, remote-only contact",
+                decimated(s, |i| Some(normal(s.rendered_remote[i]))),
+            ),
+        ],
+    });
+    panels
+}
+
+fn error_panels(r: &ExperimentReport) -> Vec<Panel> {
+    vec![Panel {
+        title: "RMS error over run time (1 s windows)".into(),
+        x_label: "time [s]".into(),
+        y_label: "RMS error / RMS measured [%]".into(),
+        log_x: false,
+        log_y: true,
+        series: vec![Line {
+            name: "error".into(),
+            points: r
+                .error_over_time
+                .iter()
+                .filter_map(|w| w.rms_error_pct.map(|e| (w.t_s + 0.5, e)))
+                .collect(),
+            markers: true,
+        }],
+    }]
+}
+
+fn spectrum_panels(s: &Series) -> Vec<Panel> {
+    let after = s.rendering.iter().position(|r| *r).unwrap_or(0);
+    let along = |v: [f64; 3]| vec3::dot(v, s.axis);
+    let measured: Vec<f64> = (after..s.len())
+        .map(|i| s.measured[i].map_or(0.0, along))
+        .collect();
+    let error: Vec<f64> = (after..s.len())
+        .map(|i| s.measured[i].map_or(0.0, |m| along(s.rendered[i]) - along(m)))
+        .collect();
+    let n = measured.len().max(1) as f64;
+    let amplitude = |x: &[f64]| -> Vec<(f64, f64)> {
+        spectrum(x, s.dt_s())
+            .into_iter()
+            .filter(|(f, _)| *f > 0.0 && *f <= 10.0)
+            .map(|(f, c)| (f, 2.0 * c.norm() / n))
+            .collect()
+    };
+    vec![Panel {
+        title: "spectrum of the tangential force and of its rendering error (after stable)".into(),
+        x_label: "frequency [Hz]".into(),
+        y_label: "amplitude [N]".into(),
+        log_x: true,
+        log_y: true,
+        series: vec![
+            line("measured", amplitude(&measured)),
+            line("error", amplitude(&error)),
+        ],
+    }]
+}
+
+fn line(name: &str, points: Vec<(f64, f64)>) -> Line {
+    Line {
+        name: name.into(),
+        points,
+        markers: false,
+    }
+}
