@@ -246,11 +246,13 @@ pub const BANDS: [(f64, f64); 3] = [(0.0, 0.3), (0.3, 1.0), (1.0, 4.0)];
 
 /// What a run was, for its report.
 #[derive(Clone, Debug)]
-pub struct RunInfo<'a> {
+pub struct RunInfo {
     /// Experiment name (`exp1`, …, or `networked`).
     pub experiment: String,
-    /// The scene (ground truth, left-out terms).
-    pub scene: &'a Scene,
+    /// Scene name.
+    pub scene: String,
+    /// The physical terms the scene's model leaves out ([`Scene::left_out`]).
+    pub left_out: Vec<String>,
     /// Trajectory name.
     pub trajectory: String,
     /// Seed.
@@ -273,7 +275,7 @@ pub struct NodeInfo {
 }
 
 /// Computes the report of a run.
-pub fn analyse(info: &RunInfo<'_>, s: &Series, nodes: NodeInfo) -> ExperimentReport {
+pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport {
     let dt = s.dt_s();
     let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
     let render_start = s.rendering.iter().position(|r| *r);
@@ -349,7 +351,7 @@ pub fn analyse(info: &RunInfo<'_>, s: &Series, nodes: NodeInfo) -> ExperimentRep
     };
     ExperimentReport {
         experiment: info.experiment.clone(),
-        scene: info.scene.name.clone(),
+        scene: info.scene.clone(),
         trajectory: info.trajectory.clone(),
         seed: info.seed,
         delay_ms: info.delay_ms,
@@ -369,7 +371,7 @@ pub fn analyse(info: &RunInfo<'_>, s: &Series, nodes: NodeInfo) -> ExperimentRep
         contact_switch_latency_ms: latency(s),
         deflection_rms_error_m: deflection_error(s),
         parameters: nodes.parameters,
-        left_out: info.scene.left_out(),
+        left_out: info.left_out.clone(),
         sim_seconds: s.len() as f64 * dt,
         thesis: ThesisFigures {
             rms_error_low_freq_pct: 30.0,

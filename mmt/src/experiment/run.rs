@@ -2,20 +2,15 @@
 
 use super::metrics::{NodeInfo, RunInfo, Series, analyse, parameter_report};
 use super::{ExperimentConfig, ExperimentError, ExperimentReport};
-use crate::cloud::{CloudFrame, Pose};
 use crate::model::col;
 use crate::node::NodeSettings;
 use crate::node::operator::{OperatorConfig, OperatorNode};
 use crate::node::telerobot::{CommandSample, TelerobotNode};
-use crate::scene::CloudKind;
+use crate::sim::camera::Camera;
 use crate::sim::world::World;
 use crate::trajectory::{Trajectory, by_name};
-use crate::vec3;
 use netem::{Channel, LinkConfig};
 use protocol::{operator_to_telerobot as up, telerobot_to_operator as down};
-use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Normal};
-use rand_pcg::Pcg64;
 
 /// Runs an experiment; `progress(fraction)` is called about a hundred times. Returns the time
 /// series and the report (everything but wall-clock time, which the caller measures).
@@ -61,7 +56,7 @@ pub fn run(
     };
     let mut uplink = link(101)?;
     let mut downlink = link(202)?;
-    let mut camera = Camera::new(config);
+    let mut camera = Camera::new(&config.scene, config.seed);
     let ticks = (config.seconds * 1e9 / period as f64).round() as usize;
     let mut series =
         Series::with_capacity(ticks, world.frame().tangent2, world.frame().normal, period);
@@ -120,7 +115,9 @@ pub fn run(
         let target = telerobot.target(now, robot);
         let sample = world.step(target.position_m, target.velocity_m_per_s);
         robot = sample.truth.position_m;
-        let frame = camera.frame(now, &world, robot, &sample.object_offset_m)?;
+        let frame = camera
+            .frame(now, &world, robot, &sample.object_offset_m)
+            .map_err(|e| ExperimentError::Cloud(e.to_string()))?;
         let prior = telerobot.tangential_estimator().map(|e| e.theta());
         let took_frame = frame.is_some();
         let messages = telerobot.step(now, target.command_sample_time_ns, &sample.measured, frame);
@@ -173,7 +170,8 @@ pub fn run(
     progress(1.0);
     let info = RunInfo {
         experiment: config.kind.name().to_string(),
-        scene: &config.scene,
+        scene: config.scene.name.clone(),
+        left_out: config.scene.left_out(),
         trajectory: config.trajectory.clone(),
         seed: config.seed,
         delay_ms: config.delay_ms,
@@ -191,87 +189,4 @@ pub fn run(
     };
     let report = analyse(&info, &series, nodes);
     Ok((series, report))
-}
-
-/// The simulated depth camera: the object's (large) contact face seen in a window of the scene's
-/// `cloud.size_m` centred on the tool, sampled on a grid fixed to the object — the points move
-/// with the object as it slides — with the scene's noise and dropout.
-struct Camera {
-    enabled: bool,
-    moving: bool,
-    period_ns: i64,
-    next_ns: i64,
-    rng: Pcg64,
-    noise: Option<Normal<f64>>,
-    dropout: f64,
-    spacing_m: f64,
-    window_m: [f64; 2],
-    origin: [f64; 3],
-}
-
-impl Camera {
-    fn new(config: &ExperimentConfig) -> Self {
-        let c = &config.scene.cloud;
-        Camera {
-            enabled: c.source == CloudKind::Plane,
-            moving: c.moving,
-            period_ns: (1e9 / c.rate_hz).round() as i64,
-            next_ns: 0,
-            rng: Pcg64::seed_from_u64(config.seed.wrapping_add(303)),
-            noise: (c.noise_m > 0.0)
-                .then(|| Normal::new(0.0, c.noise_m).ok())
-                .flatten(),
-            dropout: c.dropout,
-            spacing_m: c.spacing_m,
-            window_m: c.size_m,
-            origin: config.scene.surface.point_m,
-        }
-    }
-
-    /// A frame if one is due: the face around the tool at `tool_m`, the object slid by
-    /// `offset` along the tangents.
-    fn frame(
-        &mut self,
-        now_ns: i64,
-        world: &World,
-        tool_m: [f64; 3],
-        offset: &[f64; 2],
-    ) -> Result<Option<CloudFrame>, ExperimentError> {
-        if !self.enabled || now_ns < self.next_ns || (!self.moving && self.next_ns > 0) {
-            return Ok(None);
-        }
-        self.next_ns = now_ns + self.period_ns;
-        let f = world.frame();
-        let rel = vec3::sub(tool_m, self.origin);
-        let centre = [vec3::dot(rel, f.tangent1), vec3::dot(rel, f.tangent2)];
-        let s = self.spacing_m;
-        // Grid indices of the object's face inside the window (the grid moves with the object).
-        let range = |axis: usize| {
-            let lo = ((centre[axis] - 0.5 * self.window_m[axis] - offset[axis]) / s).ceil() as i64;
-            let hi = ((centre[axis] + 0.5 * self.window_m[axis] - offset[axis]) / s).floor() as i64;
-            lo..=hi
-        };
-        let mut points = Vec::new();
-        for i in range(0) {
-            for j in range(1) {
-                if self.dropout > 0.0 && self.rng.random::<f64>() < self.dropout {
-                    continue;
-                }
-                let (u, v) = (offset[0] + i as f64 * s, offset[1] + j as f64 * s);
-                let mut p = vec3::add(
-                    self.origin,
-                    vec3::add(vec3::scale(f.tangent1, u), vec3::scale(f.tangent2, v)),
-                );
-                if let Some(noise) = &self.noise {
-                    for c in &mut p {
-                        *c += noise.sample(&mut self.rng);
-                    }
-                }
-                points.push(p.map(|c| c as f32));
-            }
-        }
-        CloudFrame::new(points, now_ns, Pose::default())
-            .map(Some)
-            .map_err(|e| ExperimentError::Cloud(e.to_string()))
-    }
 }

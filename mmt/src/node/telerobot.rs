@@ -390,6 +390,13 @@ impl TelerobotNode {
         }));
     }
 
+    /// Installs a cloud index built off the real-time thread (the daemon's camera thread, which
+    /// also sends the frame to the operator itself); `frame_id` is the id it was sent with.
+    pub fn set_cloud(&mut self, index: Arc<CloudIndex>, frame_id: u64) {
+        self.cloud = Some(index);
+        self.frame_id = frame_id;
+    }
+
     /// The index of the last camera frame and the id it was sent with (an operator receiving
     /// the same frame may share it instead of building its own).
     pub fn latest_cloud(&self) -> Option<(u64, Arc<CloudIndex>)> {

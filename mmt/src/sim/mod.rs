@@ -26,6 +26,7 @@
 //!
 //! No clock, no thread: [`SlidingObjectSim::step`] is called once per sample by the bridge.
 
+pub mod camera;
 pub mod friction;
 pub mod noise;
 #[cfg(test)]
