@@ -126,7 +126,7 @@ impl Proxy {
         }
 
         // 2. Eq. 14–15 and the state at the proxy.
-        let here = self.scratch.surface_at(cloud, self.position, &c);
+        let here = self.scratch.surface_at(cloud, self.position, &c, false);
         let step_state = classify(&here, &c);
         let normal = match step_state {
             ContactState::Free => here.normal,
@@ -157,7 +157,7 @@ impl Proxy {
         self.last_normal = normal;
 
         // 4. Thesis D.3: what the surface looks like where the proxy now is.
-        let there = self.scratch.surface_at(cloud, self.position, &c);
+        let there = self.scratch.surface_at(cloud, self.position, &c, true);
         let frame = there.normal.and_then(SurfaceFrame::from_normal);
         let normal = frame.map(|f| f.normal);
         ContactOutput {
@@ -271,7 +271,7 @@ struct Scratch {
     centre: V3,
     radius: f64,
     /// `(at, surface)`: [`local_surface`] at `at` over `buf`, valid until `buf` is refilled.
-    surface: Option<(V3, LocalSurface)>,
+    surface: Option<(V3, bool, LocalSurface)>,
 }
 
 impl Default for Scratch {
@@ -305,16 +305,31 @@ impl Scratch {
     }
 
     /// Eq. 14–15 at `at` (reusing the last result when neither the cloud nor `at` changed);
-    /// afterwards the buffer holds every point within `r3` of `at`.
-    fn surface_at<N: Neighbours>(&mut self, cloud: &N, at: V3, c: &ProxyConfig) -> LocalSurface {
+    /// afterwards the buffer holds every point within `r3` of `at`. The surface point costs a
+    /// pass of its own: asked for only where it is reported.
+    fn surface_at<N: Neighbours>(
+        &mut self,
+        cloud: &N,
+        at: V3,
+        c: &ProxyConfig,
+        with_point: bool,
+    ) -> LocalSurface {
         self.ensure(cloud, at, c.r3_m);
-        if let Some((cached_at, surface)) = self.surface
+        if let Some((cached_at, cached_point, surface)) = self.surface
             && cached_at == at
+            && (cached_point || !with_point)
         {
             return surface;
         }
-        let surface = local_surface(at, &self.buf, c.r1_m, c.r3_m, c.normal_estimator);
-        self.surface = Some((at, surface));
+        let surface = local_surface(
+            at,
+            &self.buf,
+            c.r1_m,
+            c.r3_m,
+            c.normal_estimator,
+            with_point,
+        );
+        self.surface = Some((at, with_point, surface));
         surface
     }
 }

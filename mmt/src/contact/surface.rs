@@ -112,6 +112,7 @@ pub(crate) fn local_surface(
     r1: f64,
     r3: f64,
     estimator: NormalEstimator,
+    with_point: bool,
 ) -> LocalSurface {
     let psi = Wendland::new(r1, r3);
     let normal;
@@ -152,13 +153,17 @@ pub(crate) fn local_surface(
     // Weights by the 3-D distance favour the points noise moved toward the proxy, which puts the
     // surface too close to it by a fraction of the noise (a −5 % stiffness bias on a 2000 N/m
     // wall at 0.5 mm noise, measured); in-plane distances do not depend on that noise.
-    let centroid = match normal {
-        Some(n) => in_plane_centroid(centre, neighbours, &psi, n),
-        None => None,
-    }
-    .or_else(|| {
-        (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
-    });
+    let centroid = if !with_point {
+        None
+    } else {
+        match normal {
+            Some(n) => in_plane_centroid(centre, neighbours, &psi, n),
+            None => None,
+        }
+        .or_else(|| {
+            (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
+        })
+    };
     LocalSurface {
         normal,
         centroid,
@@ -289,21 +294,97 @@ fn plane_normal(s: &Sums) -> Option<V3> {
     }
     let mean = vec3::scale(s.m1, 1.0 / s.weight);
     const UPPER: [[usize; 3]; 3] = [[0, 1, 2], [1, 3, 4], [2, 4, 5]];
-    let cov = nalgebra::Matrix3::from_fn(|i, j| s.m2[UPPER[i][j]] / s.weight - mean[i] * mean[j]);
-    let eigen = nalgebra::SymmetricEigen::try_new(cov, f64::EPSILON, 200)?;
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-    let (smallest, middle) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
+    let cov: [[f64; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| s.m2[UPPER[i][j]] / s.weight - mean[i] * mean[j])
+    });
+    let ([smallest, middle, _], v) = symmetric3_smallest(&cov)?;
     if !(middle > 0.0 && middle >= PLANARITY * smallest.max(0.0)) {
         return None;
     }
-    let v = eigen.eigenvectors.column(order[0]);
-    vec3::normalize([v[0], v[1], v[2]])
+    vec3::normalize(v)
+}
+
+/// Eigenvalues (ascending) of a symmetric 3×3 matrix and the eigenvector of the smallest, in
+/// closed form: the trigonometric solution of the characteristic cubic (O. K. Smith, "Eigenvalues
+/// of a symmetric 3 × 3 matrix", CACM 4(4), 1961), the vector as the longest cross product of two
+/// rows of `A − λI`. `None` for an isotropic matrix (every direction an eigenvector) or
+/// non-finite input.
+fn symmetric3_smallest(a: &[[f64; 3]; 3]) -> Option<([f64; 3], V3)> {
+    let p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+    let q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+    let p2 = (a[0][0] - q).powi(2) + (a[1][1] - q).powi(2) + (a[2][2] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if !(p > 0.0 && p.is_finite()) {
+        return None;
+    }
+    let b = |i: usize, j: usize| (a[i][j] - if i == j { q } else { 0.0 }) / p;
+    let det = b(0, 0) * (b(1, 1) * b(2, 2) - b(1, 2) * b(2, 1))
+        - b(0, 1) * (b(1, 0) * b(2, 2) - b(1, 2) * b(2, 0))
+        + b(0, 2) * (b(1, 0) * b(2, 1) - b(1, 1) * b(2, 0));
+    let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+    let largest = q + 2.0 * p * phi.cos();
+    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    let middle = 3.0 * q - largest - smallest;
+    let rows: [V3; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[i][j] - if i == j { smallest } else { 0.0 })
+    });
+    let v = [
+        vec3::cross(rows[0], rows[1]),
+        vec3::cross(rows[0], rows[2]),
+        vec3::cross(rows[1], rows[2]),
+    ]
+    .into_iter()
+    .max_by(|x, y| vec3::norm2(*x).total_cmp(&vec3::norm2(*y)))?;
+    Some(([smallest, middle, largest], v))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The closed-form eigen-solution against nalgebra's iterative one on random symmetric
+    /// positive semi-definite matrices, including nearly planar ones.
+    #[test]
+    fn closed_form_symmetric_eigen_matches_nalgebra() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for trial in 0..2000 {
+            let flat = if trial % 2 == 0 { 1e-6 } else { 1.0 };
+            let g: [[f64; 3]; 3] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+            let scale = [
+                1.0,
+                rng.random_range(0.1..1.0),
+                flat * rng.random_range(0.0..1.0),
+            ];
+            // A = G diag(scale) Gᵀ
+            let a: [[f64; 3]; 3] = std::array::from_fn(|i| {
+                std::array::from_fn(|j| (0..3).map(|k| g[i][k] * scale[k] * g[j][k]).sum())
+            });
+            let Some((values, v)) = symmetric3_smallest(&a) else {
+                continue;
+            };
+            let m = nalgebra::Matrix3::from_fn(|i, j| a[i][j]);
+            let e = nalgebra::SymmetricEigen::new(m);
+            let mut reference: Vec<f64> = e.eigenvalues.iter().copied().collect();
+            reference.sort_by(f64::total_cmp);
+            let norm = reference[2].abs().max(1e-300);
+            for k in 0..3 {
+                assert!(
+                    (values[k] - reference[k]).abs() < 1e-9 * norm,
+                    "{values:?} vs {reference:?}"
+                );
+            }
+            // A v = λ v for the smallest.
+            let v = vec3::normalize(v).unwrap();
+            let av: V3 = std::array::from_fn(|i| (0..3).map(|j| a[i][j] * v[j]).sum());
+            let residual = vec3::norm(vec3::sub(av, vec3::scale(v, values[0])));
+            assert!(
+                residual < 1e-7 * norm,
+                "trial {trial}: residual {residual:e}"
+            );
+        }
+    }
 
     #[test]
     fn wendland_is_one_inside_zero_outside_smooth_between() {
@@ -372,7 +453,8 @@ mod tests {
                 point: [i as f64 * 0.001, j as f64 * 0.001, 0.0],
             })
             .collect();
-        let at = |centre: V3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator);
+        let at =
+            |centre: V3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator, true);
         for estimator in [
             NormalEstimator::WeightedDirections,
             NormalEstimator::WeightedPlaneFit,
