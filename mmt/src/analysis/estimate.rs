@@ -50,36 +50,6 @@ impl Default for EstimateConfig {
     }
 }
 
-/// Physical parameters as reported.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct PhysicalReport {
-    /// m [kg].
-    pub mass_kg: f64,
-    /// k1 [N/m].
-    pub k_ground_n_per_m: f64,
-    /// b1 [N·s/m].
-    pub b_ground_ns_per_m: f64,
-    /// k2 [N/m].
-    pub k_contact_n_per_m: f64,
-    /// b2 [N·s/m].
-    pub b_contact_ns_per_m: f64,
-    /// Fc [N].
-    pub coulomb_n: f64,
-}
-
-impl From<Physical> for PhysicalReport {
-    fn from(p: Physical) -> Self {
-        PhysicalReport {
-            mass_kg: p.mass_kg,
-            k_ground_n_per_m: p.k_ground_n_per_m,
-            b_ground_ns_per_m: p.b_ground_ns_per_m,
-            k_contact_n_per_m: p.k_contact_n_per_m,
-            b_contact_ns_per_m: p.b_contact_ns_per_m,
-            coulomb_n: p.coulomb_n,
-        }
-    }
-}
-
 /// The report.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct EstimateReport {
@@ -89,9 +59,9 @@ pub struct EstimateReport {
     pub time_to_stable_s: Option<f64>,
     /// Ground truth (Coulomb level = the Karnopp dynamic level).
     #[serde(rename = "true")]
-    pub truth: PhysicalReport,
+    pub truth: Physical,
     /// The last confirmed set.
-    pub estimated: Option<PhysicalReport>,
+    pub estimated: Option<Physical>,
     /// `(estimated − true)/true` of m, b1, k2, b2, Fc [%].
     pub error_pct: Option<ParameterErrors>,
     /// Static friction of the simulated object [N] (not in the model).
@@ -220,8 +190,8 @@ pub fn estimate(config: &EstimateConfig) -> Result<EstimateReport, EstimateError
     Ok(EstimateReport {
         reconstruction_error_pct,
         time_to_stable_s: stable_since.map(|t| t - onset_s),
-        truth: truth.into(),
-        estimated: estimated.map(Into::into),
+        truth,
+        estimated,
         error_pct: estimated.map(|e| ParameterErrors {
             mass: rel(e.mass_kg, truth.mass_kg),
             b_ground: rel(e.b_ground_ns_per_m, truth.b_ground_ns_per_m),

@@ -42,47 +42,45 @@ const FULL: Structure = Structure::SlidingMass {
 };
 const TICKS: usize = 5000;
 
-fn p(m: f64, k1: f64, b1: f64, k2: f64, b2: f64, fc: f64) -> Physical {
-    Physical {
-        mass_kg: m,
-        k_ground_n_per_m: k1,
-        b_ground_ns_per_m: b1,
-        k_contact_n_per_m: k2,
-        b_contact_ns_per_m: b2,
-        coulomb_n: fc,
-    }
-}
-
 /// Runs every case.
 pub fn stress() -> StressReport {
-    let typical = p(0.5, 200.0, 5.0, 2000.0, 10.0, 0.3);
+    let typical = Physical::new(0.5, 200.0, 5.0, 2000.0, 10.0, 0.3);
     let mut cases = vec![
         given(
             "stiff (m = 0.01, k2 = 1e5, b2 = 1)",
-            p(0.01, 0.0, 0.0, 1e5, 1.0, 0.0),
+            Physical::new(0.01, 0.0, 0.0, 1e5, 1.0, 0.0),
         ),
         near_massless(typical),
-        given("massless (m = 0)", p(0.0, 200.0, 5.0, 2000.0, 10.0, 0.3)),
+        given(
+            "massless (m = 0)",
+            Physical::new(0.0, 200.0, 5.0, 2000.0, 10.0, 0.3),
+        ),
         given("thesis exp-1 set", Physical::THESIS_EXP1),
     ];
     for (name, bad) in [
-        ("NaN mass", p(f64::NAN, 200.0, 5.0, 2000.0, 10.0, 0.3)),
+        (
+            "NaN mass",
+            Physical::new(f64::NAN, 200.0, 5.0, 2000.0, 10.0, 0.3),
+        ),
         (
             "+inf contact stiffness",
-            p(0.5, 200.0, 5.0, f64::INFINITY, 10.0, 0.3),
+            Physical::new(0.5, 200.0, 5.0, f64::INFINITY, 10.0, 0.3),
         ),
         (
             "-inf ground damping",
-            p(0.5, 200.0, f64::NEG_INFINITY, 2000.0, 10.0, 0.3),
+            Physical::new(0.5, 200.0, f64::NEG_INFINITY, 2000.0, 10.0, 0.3),
         ),
-        ("negative mass", p(-0.5, 200.0, 5.0, 2000.0, 10.0, 0.3)),
+        (
+            "negative mass",
+            Physical::new(-0.5, 200.0, 5.0, 2000.0, 10.0, 0.3),
+        ),
         (
             "negative ground damping",
-            p(0.5, 200.0, -8.0, 2000.0, 10.0, 0.3),
+            Physical::new(0.5, 200.0, -8.0, 2000.0, 10.0, 0.3),
         ),
         (
             "stable but active (k1 = -150 < 0 < k1 + k2)",
-            p(0.5, -150.0, 5.0, 2000.0, 10.0, 0.3),
+            Physical::new(0.5, -150.0, 5.0, 2000.0, 10.0, 0.3),
         ),
     ] {
         cases.push(garbage_theta(name, bad));
@@ -238,7 +236,7 @@ fn jumping(every: usize) -> Case {
     let lu = |rng: &mut Pcg64, lo: f64, hi: f64| rng.random_range(f64::ln(lo)..f64::ln(hi)).exp();
     let (max, finite) = drive(&mut r, 0.005, |k, r| {
         if k % every == 0 {
-            let set = p(
+            let set = Physical::new(
                 lu(&mut rng, 1e-3, 1.0),
                 lu(&mut rng, 1.0, 1e3),
                 lu(&mut rng, 0.1, 10.0),

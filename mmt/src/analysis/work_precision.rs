@@ -51,14 +51,7 @@ pub struct Problem {
 
 /// The five problems of the study.
 pub fn problems() -> [Problem; 5] {
-    let p = |m, k1, b1, k2, b2, fc| Physical {
-        mass_kg: m,
-        k_ground_n_per_m: k1,
-        b_ground_ns_per_m: b1,
-        k_contact_n_per_m: k2,
-        b_contact_ns_per_m: b2,
-        coulomb_n: fc,
-    };
+    let p = Physical::new;
     [
         Problem {
             name: "typical",

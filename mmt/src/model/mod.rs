@@ -59,6 +59,25 @@ impl Physical {
         coulomb_n: 0.05,
     };
 
+    /// A set from `(m, k1, b1, k2, b2, Fc)` in that order [kg, N/m, N·s/m, N/m, N·s/m, N].
+    pub const fn new(
+        mass_kg: f64,
+        k_ground: f64,
+        b_ground: f64,
+        k_contact: f64,
+        b_contact: f64,
+        coulomb: f64,
+    ) -> Physical {
+        Physical {
+            mass_kg,
+            k_ground_n_per_m: k_ground,
+            b_ground_ns_per_m: b_ground,
+            k_contact_n_per_m: k_contact,
+            b_contact_ns_per_m: b_contact,
+            coulomb_n: coulomb,
+        }
+    }
+
     /// `S = k1 + k2`, the static stiffness sum that normalises θ.
     pub fn stiffness_sum(&self) -> f64 {
         self.k_ground_n_per_m + self.k_contact_n_per_m

@@ -61,23 +61,9 @@ impl KelvinVoigtRenderer {
             self.stats.rejected_inputs += 1;
             return 0.0;
         }
-        let Some(target) = self.target else {
+        let Some((k, b)) = self.advance_parameters() else {
             return 0.0;
         };
-        let current = match self.current {
-            None => target,
-            Some(c) => KelvinVoigt {
-                k_n_per_m: smooth(c.k_n_per_m, target.k_n_per_m, self.alpha),
-                b_ns_per_m: smooth(c.b_ns_per_m, target.b_ns_per_m, self.alpha),
-            },
-        };
-        self.current = Some(current);
-        let (k, b) = self.config.colgate(current.k_n_per_m, current.b_ns_per_m);
-        self.adjustments.stiffness_clipped =
-            (k < current.k_n_per_m).then_some((current.k_n_per_m, k));
-        if self.adjustments.stiffness_clipped.is_some() {
-            self.stats.clipped_ticks += 1;
-        }
         if !in_contact || penetration_m <= 0.0 {
             return 0.0;
         }
@@ -180,12 +166,10 @@ impl ShearRenderer {
 }
 
 impl KelvinVoigtRenderer {
-    /// `k d + b ḋ` (either sign) with smoothing and Colgate's clip, 0 out of contact.
-    fn step_bilateral(&mut self, d: f64, rate: f64, in_contact: bool) -> f64 {
-        self.stats.ticks += 1;
-        let Some(target) = self.target else {
-            return 0.0;
-        };
+    /// One tick of parameter smoothing towards the target, then Colgate's clip (counted and
+    /// reported): the `(k, b)` to render, `None` before any parameters.
+    fn advance_parameters(&mut self) -> Option<(f64, f64)> {
+        let target = self.target?;
         let current = match self.current {
             None => target,
             Some(c) => KelvinVoigt {
@@ -195,6 +179,20 @@ impl KelvinVoigtRenderer {
         };
         self.current = Some(current);
         let (k, b) = self.config.colgate(current.k_n_per_m, current.b_ns_per_m);
+        self.adjustments.stiffness_clipped =
+            (k < current.k_n_per_m).then_some((current.k_n_per_m, k));
+        if self.adjustments.stiffness_clipped.is_some() {
+            self.stats.clipped_ticks += 1;
+        }
+        Some((k, b))
+    }
+
+    /// `k d + b ḋ` (either sign) with smoothing and Colgate's clip, 0 out of contact.
+    fn step_bilateral(&mut self, d: f64, rate: f64, in_contact: bool) -> f64 {
+        self.stats.ticks += 1;
+        let Some((k, b)) = self.advance_parameters() else {
+            return 0.0;
+        };
         if !in_contact {
             return 0.0;
         }

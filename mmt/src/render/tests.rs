@@ -14,19 +14,8 @@ const FULL: Structure = Structure::SlidingMass {
     friction: true,
 };
 
-fn phys(m: f64, k1: f64, b1: f64, k2: f64, b2: f64, fc: f64) -> Physical {
-    Physical {
-        mass_kg: m,
-        k_ground_n_per_m: k1,
-        b_ground_ns_per_m: b1,
-        k_contact_n_per_m: k2,
-        b_contact_ns_per_m: b2,
-        coulomb_n: fc,
-    }
-}
-
 fn typical() -> Physical {
-    phys(0.5, 200.0, 5.0, 2000.0, 10.0, 0.0)
+    Physical::new(0.5, 200.0, 5.0, 2000.0, 10.0, 0.0)
 }
 
 fn renderer_for(p: &Physical, config: RendererConfig) -> SlidingMassRenderer {
@@ -84,8 +73,8 @@ fn frequency_response_matches_exact_transfer_function() {
     let sets = [
         typical(),
         Physical::THESIS_EXP1,
-        phys(1.0, 10.0, 1.0, 10.0, 1.0, 0.0),
-        phys(1.0, 0.0, 0.1, 20.0, 0.5, 0.0),
+        Physical::new(1.0, 10.0, 1.0, 10.0, 1.0, 0.0),
+        Physical::new(1.0, 0.0, 0.1, 20.0, 0.5, 0.0),
     ];
     let omegas: Vec<f64> = (0..=12)
         .map(|i| 0.5 * 10f64.powf(i as f64 * 0.25))
@@ -245,7 +234,7 @@ fn time_domain_passivity_with_device_damping() {
 
 #[test]
 fn stiff_set_trips_the_renderability_gate_and_stays_finite() {
-    let p = phys(0.01, 0.0, 0.0, 1e5, 1.0, 0.0);
+    let p = Physical::new(0.01, 0.0, 0.0, 1e5, 1.0, 0.0);
     let mut r = renderer_for(&p, RendererConfig::default());
     let mut max = 0.0f64;
     for k in 0..2000 {
@@ -317,7 +306,7 @@ fn parameter_jumps_stay_bounded() {
         let mut max_f = 0.0f64;
         for k in 0..20_000 {
             if k % every == 0 {
-                let p = phys(
+                let p = Physical::new(
                     log_uniform(&mut rng, 1e-3, 1.0),
                     log_uniform(&mut rng, 1.0, 1e3),
                     log_uniform(&mut rng, 0.1, 10.0),
@@ -424,7 +413,7 @@ fn garbage_inputs_give_finite_force() {
 /// solution really does stick and slip.
 #[test]
 fn friction_projection_converges_to_event_located_reference() {
-    let p = phys(1.0, 0.0, 2.0, 500.0, 5.0, 1.0);
+    let p = Physical::new(1.0, 0.0, 2.0, 500.0, 5.0, 1.0);
     let input = Multisine(vec![Tone {
         amplitude_m: 0.01,
         omega_rad_s: 2.0 * std::f64::consts::PI,
@@ -462,7 +451,7 @@ fn friction_projection_converges_to_event_located_reference() {
 /// Pushing below the friction level does not move the object, and its velocity never chatters.
 #[test]
 fn no_motion_below_friction_and_no_chatter() {
-    let p = phys(1.0, 0.0, 60.0, 500.0, 60.0, 0.5);
+    let p = Physical::new(1.0, 0.0, 60.0, 500.0, 60.0, 0.5);
     let mut r = renderer_for(&p, RendererConfig::default());
     r.step(0.0, 0.0, true);
     let start = r.snapshot().mass_position_m;

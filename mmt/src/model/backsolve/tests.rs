@@ -3,17 +3,6 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
-fn phys(m: f64, k1: f64, b1: f64, k2: f64, b2: f64, fc: f64) -> Physical {
-    Physical {
-        mass_kg: m,
-        k_ground_n_per_m: k1,
-        b_ground_ns_per_m: b1,
-        k_contact_n_per_m: k2,
-        b_contact_ns_per_m: b2,
-        coulomb_n: fc,
-    }
-}
-
 const WITH_K1: Structure = Structure::SlidingMass {
     ground_spring: true,
     friction: true,
@@ -24,21 +13,21 @@ const NO_K1: Structure = Structure::SlidingMass {
 };
 
 fn typical() -> Physical {
-    phys(0.5, 200.0, 5.0, 2000.0, 10.0, 0.3)
+    Physical::new(0.5, 200.0, 5.0, 2000.0, 10.0, 0.3)
 }
 /// Thesis appendix E set: the double root of the (C)+(D) quadratic.
 fn thesis_e() -> Physical {
-    phys(1.0, 10.0, 1.0, 10.0, 1.0, 0.1)
+    Physical::new(1.0, 10.0, 1.0, 10.0, 1.0, 0.1)
 }
 /// k1 = 0 with b1 = b2: the linear closed form is singular.
 fn k1_zero_equal_b() -> Physical {
-    phys(1.0, 0.0, 60.0, 500.0, 60.0, 0.05)
+    Physical::new(1.0, 0.0, 60.0, 500.0, 60.0, 0.05)
 }
 fn stiff() -> Physical {
-    phys(0.01, 200.0, 5.0, 1e5, 1.0, 0.3)
+    Physical::new(0.01, 200.0, 5.0, 1e5, 1.0, 0.3)
 }
 fn heavy_ground() -> Physical {
-    phys(0.5, 5000.0, 5.0, 300.0, 10.0, 0.3)
+    Physical::new(0.5, 5000.0, 5.0, 300.0, 10.0, 0.3)
 }
 
 fn solve(
