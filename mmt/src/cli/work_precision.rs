@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use mmt::analysis::work_precision::{Point, problems, work_precision};
 use mmt::render::integrators::Method;
-use mmt::report::plot::{Panel, Series, svg};
+use mmt::report::plot::{Panel, Series, png, svg};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -14,7 +14,7 @@ pub struct WorkPrecisionArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-    /// Write the diagram (one panel per problem) to this SVG file.
+    /// Write the diagram (one panel per problem) to this file: SVG, or PNG if it ends in .png.
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Timed repeats per point (the median is reported).
@@ -52,8 +52,15 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
                     .collect(),
             })
             .collect();
-        let doc = svg(&panels, 3, (1500, 900))?;
-        std::fs::write(path, doc).with_context(|| format!("writing {}", path.display()))?;
+        let bytes = if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            png(&panels, 3, (1500, 900))?
+        } else {
+            svg(&panels, 3, (1500, 900))?.into_bytes()
+        };
+        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
     }
     if args.json {
         return super::print_json(&report);
