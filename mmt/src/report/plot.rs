@@ -151,6 +151,8 @@ where
                 .x_desc(panel.x_label.as_str())
                 .y_desc(panel.y_label.as_str())
                 .label_style(("sans-serif", 12))
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
                 .draw()
                 .map_err(draw_err)?;
             for (i, s) in panel.series.iter().enumerate() {
@@ -210,9 +212,51 @@ where
     Ok(())
 }
 
+/// An axis tick as a short number: three significant digits, exponent form outside
+/// [1e-3, 1e4), with the rounding noise of log-scale tick positions removed.
+fn tick(v: &f64) -> String {
+    let v = *v;
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if (1e-3..1e4).contains(&a) {
+        let digits = (2 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.2e}");
+        let (mantissa, exp) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = if mantissa.contains('.') {
+            mantissa.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            mantissa
+        };
+        format!("{mantissa}e{exp}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ticks_are_short() {
+        assert_eq!(tick(&9.999_999_999_999_999e-5), "1e-4");
+        assert_eq!(tick(&1e-6), "1e-6");
+        assert_eq!(tick(&0.001), "0.001");
+        assert_eq!(tick(&0.0099999999), "0.01");
+        assert_eq!(tick(&0.25), "0.25");
+        assert_eq!(tick(&12.5), "12.5");
+        assert_eq!(tick(&-3.0), "-3");
+        assert_eq!(tick(&2500.0), "2500");
+        assert_eq!(tick(&1.5e5), "1.5e5");
+        assert_eq!(tick(&0.0), "0");
+    }
 
     fn panel(log: bool) -> Panel {
         Panel {
