@@ -33,10 +33,15 @@ pub struct DemoConfig {
     pub delay_ms: f64,
     /// Length of the run [s], 5 to 600. Default 20.
     pub seconds: f64,
-    /// Spin window of both loops and the shim [µs], 0 to 200. Default 100.
+    /// Spin window of both loops [µs] (the shim spins half of it), 0 to 200. Default 100.
     pub spin_us: f64,
     /// Seed of the simulated telerobot. Default 1.
     pub seed: u64,
+    /// `SCHED_FIFO` priority of both loops, if wanted (needs `CAP_SYS_NICE`). Default none.
+    pub realtime_priority: Option<u8>,
+    /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
+    /// operator connects to the telerobot directly: the loopback latency figure.
+    pub via_shim: bool,
 }
 
 impl Default for DemoConfig {
@@ -46,6 +51,8 @@ impl Default for DemoConfig {
             seconds: 20.0,
             spin_us: 100.0,
             seed: 1,
+            realtime_priority: None,
+            via_shim: true,
         }
     }
 }
@@ -106,6 +113,12 @@ impl DemoConfig {
             "5 to 600 s",
         )?;
         check(
+            "--delay-ms without the shim",
+            self.delay_ms,
+            self.via_shim || self.delay_ms == 0.0,
+            "0 ms (only the shim adds delay)",
+        )?;
+        check(
             "--spin-us",
             self.spin_us,
             (0.0..=200.0).contains(&self.spin_us),
@@ -139,19 +152,26 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         scene: scene.clone(),
         seed: config.seed,
         periodic,
-        realtime_priority: None,
+        realtime_priority: config.realtime_priority,
     })?;
-    let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
-    let mut shim_config = ShimConfig::new(loopback, telerobot.local_addr());
-    shim_config.up = delay.clone();
-    shim_config.down = delay;
-    shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
-    let shim = netem::shim::start(shim_config)?;
-    tracing::info!(telerobot = %telerobot.local_addr(), shim = %shim.local_addr(),
-        delay_ms = config.delay_ms, "demo: telerobot and shim up");
+    let shim = if config.via_shim {
+        let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+        let mut shim_config = ShimConfig::new(loopback, telerobot.local_addr());
+        shim_config.up = delay.clone();
+        shim_config.down = delay;
+        shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
+        Some(netem::shim::start(shim_config)?)
+    } else {
+        None
+    };
+    let connect = shim
+        .as_ref()
+        .map_or(telerobot.local_addr(), netem::ShimHandle::local_addr);
+    tracing::info!(telerobot = %telerobot.local_addr(), %connect, delay_ms = config.delay_ms,
+        "demo: telerobot up");
 
     let mut net = NetConfig::new(
-        shim.local_addr(),
+        connect,
         Identity::read_pem(dir.path(), "operator")?,
         identity::read_cert(&tr_cert)?,
         tr_cert.display().to_string(),
@@ -172,7 +192,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
             safety: SafetyConfig::default(),
             seconds: Some(config.seconds),
             periodic,
-            realtime_priority: None,
+            realtime_priority: config.realtime_priority,
             first_session_timeout: Some(Duration::from_secs(15)),
             node: mmt::node::operator::OperatorConfig::default(),
             experiment: "demo".to_owned(),
@@ -185,13 +205,13 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         shutdown,
     );
     let summary = telerobot.stop();
-    let shim_stats = shim.shutdown();
+    let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
     let mut outcome = operator?;
     let shim_stats = shim_stats?;
     let r = &mut outcome.report;
     r.experiment.telerobot_stats = summary.last.node;
     r.telerobot = Some(summary);
-    r.shim = Some(ShimReport::from(&shim_stats));
+    r.shim = shim_stats.as_ref().map(ShimReport::from);
     Ok(outcome)
 }
 

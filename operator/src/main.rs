@@ -7,10 +7,16 @@ use operator::cli::{Cli, Command};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // The demo's stdout is its report: by default it logs only warnings, and the safety layer's
+    // per-episode events (counted in the report) not at all. RUST_LOG overrides.
+    let default_filter = match cli.command {
+        Command::Demo(_) => "warn,operator::safety=error",
+        _ => "info",
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default_filter)),
         )
         .with_writer(std::io::stderr)
         .init();

@@ -1,7 +1,7 @@
 //! Report forms (serialisable, in µs and ms) of latency histograms and link counters, shared by
 //! both daemons' reports.
 
-use netem::stats::Histogram;
+use netem::stats::LatencySummary;
 use serde::Serialize;
 use transport::LinkSnapshot;
 
@@ -19,9 +19,8 @@ pub struct LatencyReport {
 }
 
 impl LatencyReport {
-    /// From a netem histogram's summary.
-    pub fn of(h: &Histogram) -> LatencyReport {
-        let s = h.summary();
+    /// From a netem histogram's summary (e.g. the shim's release lateness).
+    pub fn of_summary(s: &LatencySummary) -> LatencyReport {
         LatencyReport {
             count: s.count,
             p50_us: s.p50_ns as f64 / 1e3,

@@ -19,7 +19,6 @@ use std::sync::Arc;
 
 use mmt::node::NodeSettings;
 use mmt::node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use netem::stats::Histogram;
 use protocol::telerobot_to_operator::Message;
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
@@ -78,8 +77,9 @@ pub(crate) struct ControlLoop {
     pub(crate) camera: Arc<CameraFeed>,
     pub(crate) spares: Arc<Spares>,
     pub(crate) snapshots: Arc<Mailbox<LoopSnapshot>>,
-    /// Command receipt − command sample time [ns] (one host: the uplink's one-way latency).
-    pub(crate) command_latency: Arc<Histogram>,
+    /// Command receipt − command sample time [ns] (one host: the uplink's one-way latency), to
+    /// the housekeeping thread.
+    pub(crate) command_latency: Arc<Mailbox<i64>>,
     pub(crate) shutdown: Shutdown,
 }
 
@@ -119,9 +119,8 @@ impl ControlLoop {
                 state.session = c.session;
             }
             let header = c.message.header;
-            if let Ok(lag) = u64::try_from(c.received_ns - header.sample_time_ns) {
-                self.command_latency.record(lag);
-            }
+            self.command_latency
+                .push(c.received_ns - header.sample_time_ns);
             self.node.on_command(CommandSample {
                 sample_time_ns: header.sample_time_ns,
                 position_m: c.message.position_m,

@@ -23,7 +23,6 @@ use mmt::node::{NodeSettings, structure_to_wire};
 use mmt::scene::{CloudKind, Scene};
 use mmt::sim::camera::Camera;
 use mmt::sim::world::World;
-use netem::stats::Histogram;
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::{LatencyReport, LinkReport, Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
@@ -38,6 +37,10 @@ use crate::net::{self, NetConfig, TelerobotLink};
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
+/// Command latencies queued for the housekeeping thread: 8 s at 1 kHz.
+const LATENCY_QUEUE: usize = 8192;
+/// Command latencies kept for the summary: one hour at 1 kHz (29 MB).
+const MAX_LATENCIES: usize = 3_600_000;
 
 /// Everything `telerobot run` needs, validated.
 #[derive(Clone, Debug)]
@@ -182,13 +185,12 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<()>>,
+    housekeeping: Option<JoinHandle<Vec<i64>>>,
     shared: Arc<Housekeeping>,
     addr: SocketAddr,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
-    command_latency: Arc<Histogram>,
     scene: Scene,
     pins: Arc<transport::OperatorPins>,
 }
@@ -254,7 +256,7 @@ impl Telerobot {
         };
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
-        let command_latency = Arc::new(Histogram::new());
+        let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
         // Tick 0 a little ahead, so that the first deadline is not already late.
         let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
         let timing = periodic.timing();
@@ -288,6 +290,8 @@ impl Telerobot {
                 link: link.clone(),
                 timing: Arc::clone(&timing),
                 spare_at: None,
+                command_latency,
+                latencies: Vec::new(),
             };
             let stop = stop.clone();
             std::thread::Builder::new()
@@ -311,7 +315,6 @@ impl Telerobot {
             link,
             feed,
             timing,
-            command_latency,
             scene: config.scene,
             pins,
         })
@@ -345,12 +348,14 @@ impl Telerobot {
     pub fn stop(mut self) -> Summary {
         self.stop.trigger();
         let end = self.control.take().and_then(|h| h.join().ok());
-        for h in [self.camera.take(), self.housekeeping.take()]
-            .into_iter()
-            .flatten()
-        {
-            let _ = h.join();
+        if let Some(camera) = self.camera.take() {
+            let _ = camera.join();
         }
+        let mut latencies = self
+            .housekeeping
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
         self.net_stop.trigger();
         let server = &mut self.server;
         let _ = self
@@ -379,7 +384,7 @@ impl Telerobot {
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
             },
-            command_latency: LatencyReport::of(&self.command_latency),
+            command_latency: LatencyReport::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
@@ -426,14 +431,18 @@ struct Keeper {
     timing: Arc<rt::LoopTiming>,
     /// Where the waiting spare was built.
     spare_at: Option<[f64; 3]>,
+    command_latency: Arc<Mailbox<i64>>,
+    latencies: Vec<i64>,
 }
 
 impl Keeper {
-    fn run(mut self, stop: &Shutdown) {
+    /// Runs until `stop`; returns the command latencies [ns].
+    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
         while !stop.wait_timeout(HOUSEKEEPING) {
             while self.spares.retired.take().is_some() {}
+            self.drain_latencies();
             if let Some(s) = self.snapshots.take() {
                 *self
                     .shared
@@ -448,6 +457,16 @@ impl Keeper {
             }
             connected = now_connected;
             self.keep_spare(&last, now_connected);
+        }
+        self.drain_latencies();
+        self.latencies
+    }
+
+    fn drain_latencies(&mut self) {
+        while let Some(lag) = self.command_latency.take() {
+            if self.latencies.len() < MAX_LATENCIES {
+                self.latencies.push(lag);
+            }
         }
     }
 

@@ -53,6 +53,13 @@ pub struct DemoArgs {
     /// Busy-spin before each loop deadline [µs], 0 to 200 (both loops; the shim spins half).
     #[arg(long, value_name = "US", default_value_t = 100.0)]
     pub spin_us: f64,
+    /// Run both loops under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
+    #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
+    pub realtime_priority: Option<u8>,
+    /// Connect the operator to the telerobot directly, without the netem shim (needs
+    /// --delay-ms 0): the loopback latency figure.
+    #[arg(long)]
+    pub no_shim: bool,
 }
 
 /// Why the loop options are refused.
@@ -115,13 +122,20 @@ pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow:
         delay_ms: args.delay_ms,
         seconds: args.seconds,
         spin_us: args.spin_us,
+        realtime_priority: args.realtime_priority,
+        via_shim: !args.no_shim,
         ..DemoConfig::default()
     };
     if !args.json {
+        let link = if args.no_shim {
+            "direct".to_owned()
+        } else {
+            format!("netem shim ({} ms each way)", args.delay_ms)
+        };
         writeln!(
             out,
-            "demo: telerobot (exp-1 scene) ⇄ netem shim ({} ms each way) ⇄ operator (scripted:exp1), {} s over loopback QUIC…",
-            args.delay_ms, args.seconds
+            "demo: telerobot (exp-1 scene) ⇄ {link} ⇄ operator (scripted:exp1), {} s over loopback QUIC…",
+            args.seconds
         )?;
         out.flush()?;
     }

@@ -89,14 +89,8 @@ pub struct ShimReport {
 
 impl From<&netem::ShimStats> for ShimReport {
     fn from(s: &netem::ShimStats) -> Self {
-        let l = s.lateness;
         ShimReport {
-            lateness: LatencyReport {
-                count: l.count,
-                p50_us: l.p50_ns as f64 / 1e3,
-                p99_us: l.p99_ns as f64 / 1e3,
-                max_us: l.max_ns as f64 / 1e3,
-            },
+            lateness: LatencyReport::of_summary(&s.lateness),
             forwarded: (s.up.forwarded, s.down.forwarded),
             dropped: (
                 s.up.dropped_loss + s.up.dropped_limit,
@@ -428,30 +422,48 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         "clock offset (telerobot − operator)",
         opt(l.clock_offset_ms, "ms"),
     )?;
-    let d = &r.downlink_latency;
-    row(
+    // One-way latencies in ms, and beyond the set delay (the stack's own queueing) in µs.
+    let latency = |out: &mut String, name: &str, l: &LatencyReport| -> std::fmt::Result {
+        row(
+            out,
+            name,
+            format!(
+                "{:.2} / {:.2} / {:.2} ms",
+                l.p50_us / 1e3,
+                l.p99_us / 1e3,
+                l.max_us / 1e3
+            ),
+        )?;
+        if let Some(d) = r.set_delay_ms {
+            let extra = |us: f64| us - d * 1e3;
+            row(
+                out,
+                "  beyond the set delay p50 / p99 / max",
+                format!(
+                    "{:.0} / {:.0} / {:.0} µs",
+                    extra(l.p50_us),
+                    extra(l.p99_us),
+                    extra(l.max_us)
+                ),
+            )?;
+        }
+        Ok(())
+    };
+    if let Some(t) = &r.telerobot {
+        latency(
+            out,
+            "uplink: command sample → telerobot receipt",
+            &t.command_latency,
+        )?;
+    }
+    latency(
         out,
-        "downlink one-way p50 / p99 / max",
-        format!(
-            "{:.2} / {:.2} / {:.2} ms",
-            d.p50_us / 1e3,
-            d.p99_us / 1e3,
-            d.max_us / 1e3
-        ),
+        "downlink: measurement send → operator receipt",
+        &r.downlink_latency,
     )?;
     row(out, "sessions", r.sessions.to_string())?;
     if let Some(t) = &r.telerobot {
-        let (c, p) = (&t.command_latency, &t.timing.period);
-        row(
-            out,
-            "command sample → telerobot receipt p50/p99/max",
-            format!(
-                "{:.2} / {:.2} / {:.2} ms",
-                c.p50_us / 1e3,
-                c.p99_us / 1e3,
-                c.max_us / 1e3
-            ),
-        )?;
+        let p = &t.timing.period;
         row(
             out,
             "telerobot loop period p50 / p99 / max",
@@ -459,8 +471,11 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         )?;
         row(
             out,
-            "  overruns, skipped",
-            format!("{} / {}", t.timing.overruns, t.timing.skipped_ticks),
+            "  ticks, overruns, skipped",
+            format!(
+                "{} / {} / {}",
+                t.timing.ticks, t.timing.overruns, t.timing.skipped_ticks
+            ),
         )?;
     }
     if let Some(s) = &r.shim {
@@ -474,10 +489,13 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
     let s = &r.safety;
     row(
         out,
-        "safety: watchdog fades / saturations / workspace",
+        "safety episodes: watchdog / rate / max / workspace",
         format!(
-            "{} / {} / {}",
-            s.watchdog_fading.episodes, s.saturated.episodes, s.workspace.episodes
+            "{} / {} / {} / {}",
+            s.watchdog_fading.episodes,
+            s.rate_limited.episodes,
+            s.saturated.episodes,
+            s.workspace.episodes
         ),
     )?;
     Ok(())
