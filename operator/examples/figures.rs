@@ -9,7 +9,7 @@
 //!    lateness under this load.
 //!
 //! ```sh
-//! cargo run --release -p operator --example figures [-- SECONDS [SPIN_US]]
+//! cargo run --release -p operator --example figures [-- SECONDS \[SPIN_US\]]
 //! ```
 
 #![allow(clippy::unwrap_used)]
@@ -25,7 +25,9 @@ fn main() {
     let spin_us: f64 = args
         .next()
         .map_or(100.0, |s| s.parse().expect("SPIN_US must be a number"));
-    println!("{seconds} s of scripted:exp1 per case, spin {spin_us} µs; all times in ms unless said");
+    println!(
+        "{seconds} s of scripted:exp1 per case, spin {spin_us} µs; all times in ms unless said"
+    );
     println!(
         "{:<16} {:>10} {:>8} {:>22} {:>22} {:>22} {:>22} {:>18}",
         "case",

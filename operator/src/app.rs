@@ -37,7 +37,7 @@ pub struct RunConfig {
     pub open: OpenOptions,
     /// Safety settings (the device's limits come from the device).
     pub safety: SafetyConfig,
-    /// Run length [s] from the first session; `None`: until the shutdown signal.
+    /// Run length \[s\] from the first session; `None`: until the shutdown signal.
     pub seconds: Option<f64>,
     /// Spin window of the loop (its period comes from the telerobot's control rate).
     pub periodic: PeriodicConfig,
@@ -61,7 +61,7 @@ pub struct Known {
     pub scene: Scene,
     /// The telerobot's seed.
     pub seed: u64,
-    /// The one-way delay set on the shim [ms].
+    /// The one-way delay set on the shim \[ms\].
     pub delay_ms: f64,
 }
 

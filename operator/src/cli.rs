@@ -22,8 +22,8 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use rt::Shutdown;
 
-pub use app::{DemoArgs, LoopArgs, demo};
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
+pub use run::{DemoArgs, LoopArgs, demo};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
@@ -298,7 +298,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         "network: telerobot {} pinned to {}, as '{}'",
         net.connect, net.telerobot_cert_source, net.operator_name
     )?;
-    app::run_cmd(&args.run, net, args.device.clone(), options, shutdown, out)?;
+    run::run_cmd(&args.run, net, args.device.clone(), options, shutdown, out)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -311,7 +311,7 @@ pub fn no_force_warning(spec: &DeviceSpec) -> String {
     }
 }
 
-mod app;
 mod net;
+mod run;
 #[cfg(test)]
 mod tests;

@@ -29,11 +29,11 @@ use crate::safety::SafetyConfig;
 /// The demo's settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoConfig {
-    /// One-way delay each way [ms], 0 to 2000. Default 400 (the thesis's experiment 3).
+    /// One-way delay each way \[ms\], 0 to 2000. Default 400 (the thesis's experiment 3).
     pub delay_ms: f64,
-    /// Length of the run [s], 5 to 600. Default 20.
+    /// Length of the run \[s\], 5 to 600. Default 20.
     pub seconds: f64,
-    /// Spin window of both loops [µs] (the shim spins half of it), 0 to 200. Default 100.
+    /// Spin window of both loops \[µs\] (the shim spins half of it), 0 to 200. Default 100.
     pub spin_us: f64,
     /// Seed of the simulated telerobot. Default 1.
     pub seed: u64,

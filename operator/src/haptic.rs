@@ -40,9 +40,9 @@ pub const TICK_QUEUE: usize = 8192;
 pub struct TickRecord {
     /// Tick number (the command's sample time is `start + index·period`).
     pub index: u64,
-    /// Position handed to the node (the command) [m], world frame.
+    /// Position handed to the node (the command) \[m\], world frame.
     pub position_m: [f64; 3],
-    /// The node's force [N]: what the model renders, before the safety layer.
+    /// The node's force \[N\]: what the model renders, before the safety layer.
     pub force_n: [f64; 3],
     /// The node is in contact.
     pub in_contact: bool,

@@ -37,7 +37,7 @@ pub struct MeasurementRecord {
     pub message: Measurement,
     /// When it arrived [ns, operator clock].
     pub received_ns: i64,
-    /// The clock-offset estimate when it was taken (telerobot − operator) [ns].
+    /// The clock-offset estimate when it was taken (telerobot − operator) \[ns\].
     pub offset_ns: Option<i64>,
 }
 

@@ -11,7 +11,7 @@ use mmt::node::{NodeSettings, structure_from_wire};
 use mmt::scene::{ProxySection, Scene};
 use protocol::telerobot_to_operator::SceneSummary;
 
-/// The control rates the haptic loop runs at [Hz].
+/// The control rates the haptic loop runs at \[Hz\].
 pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 100.0..=10_000.0;
 
 /// A `Welcome` the operator cannot run with.

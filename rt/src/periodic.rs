@@ -13,16 +13,16 @@ use transport::clock::monotonic_ns;
 
 use crate::timing::LoopTiming;
 
-/// Largest spin window allowed [ns]: 200 µs, 20 % of a 1 ms period (`DESIGN.md` §2: two spinning
+/// Largest spin window allowed \[ns\]: 200 µs, 20 % of a 1 ms period (`DESIGN.md` §2: two spinning
 /// loops and the netem scheduler share a 2-core machine in the demo and the tests).
 pub const MAX_SPIN_NS: i64 = 200_000;
 
 /// Settings of a periodic loop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PeriodicConfig {
-    /// Period [ns], 100 µs to 1 s. Default 1 ms (1 kHz).
+    /// Period \[ns\], 100 µs to 1 s. Default 1 ms (1 kHz).
     pub period_ns: i64,
-    /// Busy-spin before each deadline [ns], 0 to [`MAX_SPIN_NS`]. Default 100 µs: absorbs the
+    /// Busy-spin before each deadline \[ns\], 0 to [`MAX_SPIN_NS`]. Default 100 µs: absorbs the
     /// kernel timer's 25–75 µs wake-up lateness (network notes §0.2) at 10 % of one core.
     pub spin_ns: i64,
     /// Missed ticks run back to back after a stall, at most this many; a longer stall moves the

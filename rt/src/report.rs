@@ -5,16 +5,16 @@ use netem::stats::LatencySummary;
 use serde::Serialize;
 use transport::LinkSnapshot;
 
-/// A latency distribution [µs].
+/// A latency distribution \[µs\].
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct LatencyReport {
     /// Samples.
     pub count: u64,
-    /// Median [µs].
+    /// Median \[µs\].
     pub p50_us: f64,
-    /// 99th percentile [µs].
+    /// 99th percentile \[µs\].
     pub p99_us: f64,
-    /// Largest [µs].
+    /// Largest \[µs\].
     pub max_us: f64,
 }
 
@@ -29,7 +29,7 @@ impl LatencyReport {
         }
     }
 
-    /// From samples [ns] (sorts them).
+    /// From samples \[ns\] (sorts them).
     pub fn of_samples(samples: &mut [i64]) -> LatencyReport {
         samples.sort_unstable();
         let n = samples.len();
@@ -63,11 +63,11 @@ pub struct LinkReport {
     pub lost: u64,
     /// Datagrams that were not valid messages of the direction (counted, ignored).
     pub garbage: u64,
-    /// Smoothed RTT from header echoes [ms].
+    /// Smoothed RTT from header echoes \[ms\].
     pub rtt_ms: Option<f64>,
-    /// Smallest RTT sample [ms].
+    /// Smallest RTT sample \[ms\].
     pub rtt_min_ms: Option<f64>,
-    /// Clock offset, peer minus ours [ms] (operator side).
+    /// Clock offset, peer minus ours \[ms\] (operator side).
     pub clock_offset_ms: Option<f64>,
 }
 

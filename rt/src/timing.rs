@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicI64, AtomicU64, Ordering::Relaxed};
 
 use serde::Serialize;
 
-/// Bin width [ns].
+/// Bin width \[ns\].
 const BIN_NS: i64 = 1_000;
 /// Bins: 0 to 10 ms.
 const BINS: usize = 10_000;
@@ -34,23 +34,23 @@ pub struct LoopTiming {
     last_start_ns: AtomicI64,
 }
 
-/// Three quantiles of a distribution [µs].
+/// Three quantiles of a distribution \[µs\].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Quantiles {
-    /// Median [µs] (1 µs resolution).
+    /// Median \[µs\] (1 µs resolution).
     pub p50_us: f64,
-    /// 99th percentile [µs] (1 µs resolution).
+    /// 99th percentile \[µs\] (1 µs resolution).
     pub p99_us: f64,
-    /// Largest value [µs], exact.
+    /// Largest value \[µs\], exact.
     pub max_us: f64,
 }
 
 /// A summary of [`LoopTiming`], for reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct TimingReport {
-    /// Nominal period [µs].
+    /// Nominal period \[µs\].
     pub nominal_period_us: f64,
-    /// Spin window [µs].
+    /// Spin window \[µs\].
     pub spin_us: f64,
     /// Ticks run.
     pub ticks: u64,

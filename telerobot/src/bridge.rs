@@ -13,12 +13,12 @@ use mmt::sim::world::{Sample3, World};
 /// What the robot did in one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BridgeSample {
-    /// What the sensors read: position [m], velocity [m/s], force on the tool [N], world frame.
+    /// What the sensors read: position \[m\], velocity \[m/s\], force on the tool \[N\], world frame.
     pub measured: Sample3,
-    /// Where the tool is, as well as the bridge knows it [m] (the simulated truth; a real robot's
+    /// Where the tool is, as well as the bridge knows it \[m\] (the simulated truth; a real robot's
     /// forward kinematics). The loop holds the robot here when commands stop.
     pub tool_m: [f64; 3],
-    /// How far the simulated object slid along the surface's tangents [m], for the simulated
+    /// How far the simulated object slid along the surface's tangents \[m\], for the simulated
     /// camera (zero for a real robot).
     pub object_offset_m: [f64; 2],
 }
@@ -26,7 +26,7 @@ pub struct BridgeSample {
 /// A robot the telerobot loop drives once per tick. `step` is called from the real-time thread:
 /// it must not block, allocate or log.
 pub trait RobotBridge: Send {
-    /// Where the tool is now [m].
+    /// Where the tool is now \[m\].
     fn tool_m(&self) -> [f64; 3];
     /// Moves the robot to `target` over one tick and reads its sensors.
     fn step(&mut self, target: &Target) -> BridgeSample;

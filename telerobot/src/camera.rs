@@ -36,9 +36,9 @@ const KEEP: usize = 4;
 pub struct CameraPose {
     /// The loop's tick time [ns, `monotonic_ns`]: the frame's capture time.
     pub now_ns: i64,
-    /// Tool position [m] (the camera window is centred on it).
+    /// Tool position \[m\] (the camera window is centred on it).
     pub tool_m: [f64; 3],
-    /// How far the object slid along the tangents [m] (the cloud moves with it).
+    /// How far the object slid along the tangents \[m\] (the cloud moves with it).
     pub object_offset_m: [f64; 2],
 }
 

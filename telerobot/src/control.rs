@@ -41,7 +41,7 @@ pub struct LoopSnapshot {
     pub session: u64,
     /// The robot holds still (no command fresher than the timeout).
     pub holding: bool,
-    /// Tool position [m].
+    /// Tool position \[m\].
     pub tool_m: [f64; 3],
     /// The node's counters (this session's node).
     pub node: TelerobotStats,
@@ -77,7 +77,7 @@ pub(crate) struct ControlLoop {
     pub(crate) camera: Arc<CameraFeed>,
     pub(crate) spares: Arc<Spares>,
     pub(crate) snapshots: Arc<Mailbox<LoopSnapshot>>,
-    /// Command receipt − command sample time [ns] (one host: the uplink's one-way latency), to
+    /// Command receipt − command sample time \[ns\] (one host: the uplink's one-way latency), to
     /// the housekeeping thread.
     pub(crate) command_latency: Arc<Mailbox<i64>>,
     pub(crate) shutdown: Shutdown,

@@ -436,7 +436,7 @@ struct Keeper {
 }
 
 impl Keeper {
-    /// Runs until `stop`; returns the command latencies [ns].
+    /// Runs until `stop`; returns the command latencies \[ns\].
     fn run(mut self, stop: &Shutdown) -> Vec<i64> {
         let mut last = LoopSnapshot::default();
         let mut connected = false;

@@ -65,9 +65,37 @@ pub fn tuning(delay_ms: f64) -> LinkTuning {
 
 /// The telerobot daemon on the built-in exp-1 scene on a free loopback port, trusting `trusted`.
 pub fn telerobot(identity: &Identity, trusted: &[&Identity], delay_ms: f64) -> Telerobot {
+    Telerobot::start(telerobot_config(
+        identity,
+        trusted,
+        delay_ms,
+        "127.0.0.1:0".parse().unwrap(),
+    ))
+    .unwrap()
+}
+
+/// The telerobot daemon on `listen`, or `None` while the port is still taken.
+pub fn telerobot_on(
+    identity: &Identity,
+    trusted: &[&Identity],
+    listen: SocketAddr,
+) -> Option<Telerobot> {
+    match Telerobot::start(telerobot_config(identity, trusted, 0.0, listen)) {
+        Ok(t) => Some(t),
+        Err(telerobot::DaemonError::Net(telerobot::net::NetError::Bind { .. })) => None,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+fn telerobot_config(
+    identity: &Identity,
+    trusted: &[&Identity],
+    delay_ms: f64,
+    listen: SocketAddr,
+) -> telerobot::RunConfig {
     let scene = Scene::exp1();
-    Telerobot::start(telerobot::RunConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
+    telerobot::RunConfig {
+        listen,
         identity: identity.clone(),
         trusted_operators: trusted
             .iter()
@@ -82,8 +110,7 @@ pub fn telerobot(identity: &Identity, trusted: &[&Identity], delay_ms: f64) -> T
             ..PeriodicConfig::default()
         },
         realtime_priority: None,
-    })
-    .unwrap()
+    }
 }
 
 /// The netem shim in front of `forward`, `delay_ms` each way.

@@ -253,8 +253,60 @@ fn a_second_operator_is_refused_while_one_is_connected() {
     // Alice was not disturbed.
     let outcome = alice.join().unwrap().unwrap();
     assert_eq!(outcome.report.sessions, 1);
+    // Once she has left, bob is accepted, with a fresh node (built off the loop thread).
+    let config = operator_config(tr.local_addr(), &bob, &certs.telerobot, "bob", 3.0, 0.0);
+    let outcome = app::run(config, Shutdown::new()).unwrap();
+    assert!(
+        outcome.report.measurements.0 > 2000,
+        "{:?}",
+        outcome.report.measurements
+    );
+    let s = tr.snapshot();
+    assert_eq!((s.session, s.inline_node_builds), (2, 0), "{s:?}");
+    assert!(s.node.commands > 2000 && s.node.commands < 3500, "{s:?}");
     let summary = tr.stop();
-    assert_eq!((summary.sessions, summary.refusals), (1, 1));
+    assert_eq!((summary.sessions, summary.refusals), (2, 1));
+}
+
+#[test]
+fn the_operator_reconnects_when_the_telerobot_comes_back() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    let addr = tr.local_addr();
+    let operator = spawn_operator(operator_config(
+        addr,
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        12.0,
+        0.0,
+    ));
+    wait_for(Duration::from_secs(15), || {
+        tr.link().status().connected().then_some(())
+    })
+    .unwrap();
+    std::thread::sleep(Duration::from_secs(3));
+    let first = tr.stop();
+    assert_eq!(first.sessions, 1);
+    // The same telerobot again, on the same port (retried while the old socket is released).
+    let tr = wait_for(Duration::from_secs(5), || {
+        telerobot_on(&certs.telerobot, &[&certs.operator], addr)
+    })
+    .unwrap();
+    let reconnected = wait_for(Duration::from_secs(10), || {
+        tr.link().status().connected().then_some(())
+    });
+    assert!(reconnected.is_some(), "the operator did not come back");
+    let outcome = operator.join().unwrap().unwrap();
+    let second = tr.stop();
+    let r = &outcome.report;
+    // One haptic loop all along, a fresh node for the second session.
+    assert_eq!(r.sessions, 2);
+    assert!(r.loop_timing.ticks >= 11_900, "{:?}", r.loop_timing);
+    assert!(second.last.node.commands > 2000, "{:?}", second.last);
+    let after = outcome.series.measured[9_000..].iter().flatten().count();
+    assert!(after > 2000, "{after} measurements in the last 3 s");
 }
 
 #[test]

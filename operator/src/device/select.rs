@@ -82,7 +82,7 @@ impl std::fmt::Display for DeviceSpec {
 /// Settings for every backend; only the chosen backend's part is used.
 #[derive(Clone, Debug, Default)]
 pub struct OpenOptions {
-    /// Nominal length of a scripted trajectory [s] (its contact episodes are placed within it);
+    /// Nominal length of a scripted trajectory \[s\] (its contact episodes are placed within it);
     /// `None`: the profiles' default, 60 s.
     pub scripted_length_s: Option<f64>,
     /// State machine settings (enable ramp, servo watchdog).
@@ -124,7 +124,7 @@ pub fn open_device(
 /// Names [`scripted_trajectory`] knows: `mmt`'s named profiles.
 pub const SCRIPTED_NAMES: &[&str] = &NAMES;
 
-/// Resolves `scripted:NAME` to `mmt`'s named profile of nominal length `length_s` [s], placed on
+/// Resolves `scripted:NAME` to `mmt`'s named profile of nominal length `length_s` \[s\], placed on
 /// the default surface (through the origin, normal +z: the exp-1 table), so that it presses into
 /// the scene the telerobot simulates (`hold`: pressed 4 mm into the table, still).
 pub fn scripted_trajectory(name: &str, length_s: f64) -> Result<Box<dyn Trajectory>, DeviceError> {

@@ -9,18 +9,18 @@
 //! ticks where both exist), refined by a parabola through the peak and its neighbours, is that
 //! delay.
 
-/// Longest gap between two measurements interpolated across [ticks].
+/// Longest gap between two measurements interpolated across \[ticks\].
 const MAX_GAP_TICKS: f64 = 5.0;
 /// Smallest peak correlation accepted: below it the signals do not match well enough to say.
 const MIN_PEAK: f64 = 0.5;
 
-/// Lags searched [s]: from `-before_s` (measured ahead: only with a wrong clock offset) to
+/// Lags searched \[s\]: from `-before_s` (measured ahead: only with a wrong clock offset) to
 /// `after_s`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LagRange {
-    /// Largest lead of measured over rendered searched [s].
+    /// Largest lead of measured over rendered searched \[s\].
     pub before_s: f64,
-    /// Largest lag of measured behind rendered searched [s].
+    /// Largest lag of measured behind rendered searched \[s\].
     pub after_s: f64,
 }
 
@@ -36,9 +36,9 @@ impl Default for LagRange {
 /// The result: the lag and how well the shifted signals match.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct DelayEstimate {
-    /// Lag of measured behind rendered [ms].
+    /// Lag of measured behind rendered \[ms\].
     pub delay_ms: f64,
-    /// Correlation at the peak, in [−1, 1].
+    /// Correlation at the peak, in \[−1, 1\].
     pub peak_correlation: f64,
     /// Tick pairs at the peak's lag.
     pub pairs: usize,
@@ -46,7 +46,7 @@ pub struct DelayEstimate {
 
 /// Estimates the lag of `measured` behind `rendered`.
 ///
-/// - `rendered[k]`: the rendered tangential force at tick `k` (used only where `use_tick[k]`);
+/// - `rendered\[k\]`: the rendered tangential force at tick `k` (used only where `use_tick\[k\]`);
 /// - `measured`: `(u, value)`, `u` the measurement's time on the operator's clock in ticks since
 ///   tick 0 (fractional), any order;
 /// - `period_s`: the tick period.
@@ -157,7 +157,7 @@ fn resample(measured: &[(f64, f64)], n: usize) -> Vec<Option<f64>> {
 mod tests {
     use super::*;
 
-    /// A multisine like the exp-1 excitation, sampled at `t` [s].
+    /// A multisine like the exp-1 excitation, sampled at `t` \[s\].
     fn signal(t: f64) -> f64 {
         [
             (0.35, 1.0, 0.1),

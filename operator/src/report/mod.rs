@@ -39,11 +39,11 @@ pub struct NetworkedReport {
     /// The figures of `mmt experiment`.
     #[serde(flatten)]
     pub experiment: ExperimentReport,
-    /// Lead of the rendered over the measured tangential force, by cross-correlation [ms].
+    /// Lead of the rendered over the measured tangential force, by cross-correlation \[ms\].
     pub measured_delay_ms: Option<f64>,
     /// The cross-correlation behind it.
     pub delay_estimate: Option<DelayEstimate>,
-    /// The one-way delay the run was set up with (the demo's shim), if known [ms].
+    /// The one-way delay the run was set up with (the demo's shim), if known \[ms\].
     pub set_delay_ms: Option<f64>,
     /// The newest parameters received, as sent.
     pub parameters_received: Vec<(String, f64)>,
@@ -54,7 +54,7 @@ pub struct NetworkedReport {
     /// The link as the operator saw it.
     pub link: LinkReport,
     /// Measurement receipt − send time mapped with the clock offset: the downlink's one-way
-    /// latency [µs].
+    /// latency \[µs\].
     pub downlink_latency: LatencyReport,
     /// Measurements received (and lost to a full queue before the report thread took them).
     pub measurements: (u64, u64),
@@ -68,7 +68,7 @@ pub struct NetworkedReport {
     pub device_forces: ForceRecord,
     /// The device.
     pub device: String,
-    /// Wall-clock length of the haptic loop [s].
+    /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
     /// The telerobot daemon's summary (the demo, which runs it).
     pub telerobot: Option<telerobot::Summary>,
@@ -79,7 +79,7 @@ pub struct NetworkedReport {
 /// The netem shim's figures.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct ShimReport {
-    /// Release lateness (actual − due send time), both directions [µs].
+    /// Release lateness (actual − due send time), both directions \[µs\].
     pub lateness: LatencyReport,
     /// Datagrams forwarded up (operator → telerobot) and down.
     pub forwarded: (u64, u64),
@@ -113,15 +113,15 @@ pub struct RunFacts {
     pub device: String,
     /// Seed of the simulated telerobot, if known (0 otherwise).
     pub seed: u64,
-    /// The set one-way delay, if known (the demo) [ms].
+    /// The set one-way delay, if known (the demo) \[ms\].
     pub set_delay_ms: Option<f64>,
     /// The scene's ground truth, if known (the demo): the parameter report compares against it.
     pub truth: Option<Scene>,
-    /// Tick 0's time [ns, operator clock] and the period [ns].
+    /// Tick 0's time [ns, operator clock] and the period \[ns\].
     pub start_ns: i64,
-    /// Tick period [ns].
+    /// Tick period \[ns\].
     pub period_ns: i64,
-    /// The clock offset at the end (telerobot − operator) [ns], for measurements taken before
+    /// The clock offset at the end (telerobot − operator) \[ns\], for measurements taken before
     /// the first estimate.
     pub final_offset_ns: Option<i64>,
     /// Link counters at the end.
@@ -130,7 +130,7 @@ pub struct RunFacts {
     pub measurements_overwritten: u64,
     /// The loop's timing.
     pub timing: TimingReport,
-    /// Wall-clock length [s].
+    /// Wall-clock length \[s\].
     pub wall_seconds: f64,
 }
 
