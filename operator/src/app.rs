@@ -129,12 +129,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     if !spec.outputs_force {
         tracing::warn!(device = %config.device, "{}", crate::cli::no_force_warning(&config.device));
     }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .thread_name("operator-net")
-        .enable_all()
-        .build()
-        .map_err(io("the network runtime"))?;
+    let runtime = rt::network_runtime("operator-net").map_err(io("the network runtime"))?;
     let (link, net_io) = net::link(
         net::DEFAULT_OUTBOX_CAPACITY,
         net::DEFAULT_MEASUREMENT_CAPACITY,

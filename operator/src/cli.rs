@@ -23,7 +23,7 @@ use clap::{Args, Parser, Subcommand};
 use rt::Shutdown;
 
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
-pub use run::{DemoArgs, LoopArgs, demo};
+pub use run::{DemoArgs, LoopArgs, RtArgs, demo};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};

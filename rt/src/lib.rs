@@ -13,6 +13,7 @@
 //!   helper threads (a blocking wait) and the network tasks (an async wait), fired by the caller or
 //!   by Ctrl-C / SIGTERM ([`Shutdown::on_signals`]).
 //! - [`LatencyReport`], [`LinkReport`]: the report forms of latency histograms and link counters.
+//! - [`network_runtime`]: the one-worker tokio runtime of a daemon's network task.
 //! - [`spawn`]: starts a named loop thread with a 1 ns timer slack and, if asked, `SCHED_FIFO`.
 //!
 //! What it is not: no knowledge of nodes, devices or the network. The clock is
@@ -30,6 +31,16 @@ pub use timing::{LoopTiming, Quantiles, TimingReport};
 
 use std::io;
 use std::thread::JoinHandle;
+
+/// The network runtime of a daemon: tokio with one worker thread named `name` (the QUIC
+/// endpoint's few thousand datagrams a second need no more; the cores are the loops').
+pub fn network_runtime(name: &str) -> io::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name(name)
+        .enable_all()
+        .build()
+}
 
 /// Starts `body` on a new OS thread named `name`, with its timer slack at 1 ns (the default 50 µs
 /// lets the kernel wake a sleeper that much late) and, with `priority = Some(p)`, under

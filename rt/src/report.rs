@@ -5,6 +5,8 @@ use netem::stats::LatencySummary;
 use serde::Serialize;
 use transport::LinkSnapshot;
 
+use crate::timing::Quantiles;
+
 /// A latency distribution \[µs\].
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct LatencyReport {
@@ -26,6 +28,15 @@ impl LatencyReport {
             p50_us: s.p50_ns as f64 / 1e3,
             p99_us: s.p99_ns as f64 / 1e3,
             max_us: s.max_ns as f64 / 1e3,
+        }
+    }
+
+    /// The three quantiles.
+    pub fn quantiles(&self) -> Quantiles {
+        Quantiles {
+            p50_us: self.p50_us,
+            p99_us: self.p99_us,
+            max_us: self.max_us,
         }
     }
 

@@ -212,12 +212,7 @@ impl Telerobot {
             ..config.periodic
         };
         periodic_config.validate()?;
-        let runtime = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .thread_name("telerobot-net")
-            .enable_all()
-            .build()
-            .map_err(io("the network runtime"))?;
+        let runtime = rt::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
         let server = {

@@ -78,16 +78,7 @@ fn bad_flags_and_files_are_named() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("--trust"), "{e}");
-    let Command::Run(args) = parse(&[
-        "telerobot",
-        "run",
-        "--listen",
-        "0.0.0.0:1",
-        "--identity",
-        "/nonexistent",
-        "--trust",
-        "y",
-    ]) else {
+    let Command::Run(args) = parse(&run_line(&[])) else {
         panic!()
     };
     let e = RunConfig::from_args(&args).unwrap_err().to_string();
@@ -97,18 +88,7 @@ fn bad_flags_and_files_are_named() {
 #[test]
 fn scene_and_loop_flags_are_checked() {
     let run_args = |extra: &[&str]| {
-        let mut args = vec![
-            "telerobot",
-            "run",
-            "--listen",
-            "0.0.0.0:1",
-            "--identity",
-            "/nonexistent",
-            "--trust",
-            "y",
-        ];
-        args.extend_from_slice(extra);
-        let Command::Run(args) = parse(&args) else {
+        let Command::Run(args) = parse(&run_line(extra)) else {
             panic!()
         };
         args
@@ -131,19 +111,24 @@ fn scene_and_loop_flags_are_checked() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("--spin-us 500"), "{e}");
-    let e = Cli::try_parse_from([
+    let e = Cli::try_parse_from(run_line(&["--realtime-priority", "0"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--realtime-priority"), "{e}");
+}
+
+/// `telerobot run` with valid flags (files that do not exist) and `extra`.
+fn run_line<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
         "telerobot",
         "run",
         "--listen",
         "0.0.0.0:1",
         "--identity",
-        "x",
+        "/nonexistent",
         "--trust",
         "y",
-        "--realtime-priority",
-        "0",
-    ])
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("--realtime-priority"), "{e}");
+    ];
+    args.extend_from_slice(extra);
+    args
 }

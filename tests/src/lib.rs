@@ -162,6 +162,26 @@ pub fn operator_config(
     }
 }
 
+/// The telerobot behind a shim of `delay_ms` each way, and the configuration of an operator
+/// ("alice", scripted exp-1 for `seconds`) connecting through the shim.
+pub fn through_shim(
+    certs: &Certs,
+    delay_ms: f64,
+    seconds: f64,
+) -> (Telerobot, ShimHandle, RunConfig) {
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], delay_ms);
+    let shim = shim(tr.local_addr(), delay_ms);
+    let config = operator_config(
+        shim.local_addr(),
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        seconds,
+        delay_ms,
+    );
+    (tr, shim, config)
+}
+
 /// Runs the operator app on its own thread.
 pub fn spawn_operator(config: RunConfig) -> JoinHandle<Result<Outcome, RunError>> {
     std::thread::spawn(move || app::run(config, Shutdown::new()))
@@ -179,6 +199,14 @@ pub fn wait_for<T>(timeout: Duration, mut f: impl FnMut() -> Option<T>) -> Optio
         }
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// Waits (up to 15 s) until an operator is in control of `tr`.
+pub fn wait_connected(tr: &Telerobot) {
+    let connected = wait_for(Duration::from_secs(15), || {
+        tr.link().status().connected().then_some(())
+    });
+    assert!(connected.is_some(), "no operator in control within 15 s");
 }
 
 /// Sends raw UDP junk (not QUIC) to `addr`.

@@ -25,17 +25,7 @@ use transport::clock::monotonic_ns;
 /// set delay.
 fn delay_is_reproduced(delay_ms: f64) {
     let _serial = serial();
-    let certs = Certs::new();
-    let tr = telerobot(&certs.telerobot, &[&certs.operator], delay_ms);
-    let shim = shim(tr.local_addr(), delay_ms);
-    let config = operator_config(
-        shim.local_addr(),
-        &certs.operator,
-        &certs.telerobot,
-        "alice",
-        10.0,
-        delay_ms,
-    );
+    let (tr, shim, config) = through_shim(&Certs::new(), delay_ms, 10.0);
     let outcome = spawn_operator(config).join().unwrap().unwrap();
     let summary = tr.stop();
     shim.shutdown().unwrap();
@@ -72,23 +62,9 @@ fn delay_is_reproduced_at_400_ms() {
 #[test]
 fn a_2_s_outage_heals_without_restart() {
     let _serial = serial();
-    let certs = Certs::new();
-    let delay_ms = 100.0;
-    let tr = telerobot(&certs.telerobot, &[&certs.operator], delay_ms);
-    let shim = shim(tr.local_addr(), delay_ms);
-    let config = operator_config(
-        shim.local_addr(),
-        &certs.operator,
-        &certs.telerobot,
-        "alice",
-        14.0,
-        delay_ms,
-    );
+    let (tr, shim, config) = through_shim(&Certs::new(), 100.0, 14.0);
     let operator = spawn_operator(config);
-    wait_for(Duration::from_secs(15), || {
-        tr.link().status().connected().then_some(())
-    })
-    .unwrap();
+    wait_connected(&tr);
     // 6 s in: the second contact episode of the script, with a model rendered.
     std::thread::sleep(Duration::from_secs(6));
     let normal = shim.config(Direction::Up);
@@ -230,10 +206,7 @@ fn a_second_operator_is_refused_while_one_is_connected() {
         5.0,
         0.0,
     ));
-    wait_for(Duration::from_secs(15), || {
-        tr.link().status().connected().then_some(())
-    })
-    .unwrap();
+    wait_connected(&tr);
     let config = operator_config(tr.local_addr(), &bob, &certs.telerobot, "bob", 2.0, 0.0);
     let e = app::run(config, Shutdown::new()).err().unwrap();
     assert!(
@@ -282,10 +255,7 @@ fn the_operator_reconnects_when_the_telerobot_comes_back() {
         12.0,
         0.0,
     ));
-    wait_for(Duration::from_secs(15), || {
-        tr.link().status().connected().then_some(())
-    })
-    .unwrap();
+    wait_connected(&tr);
     std::thread::sleep(Duration::from_secs(3));
     let first = tr.stop();
     assert_eq!(first.sessions, 1);

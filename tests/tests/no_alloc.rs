@@ -75,21 +75,9 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn neither_loop_allocates_or_frees_once_running() {
     let _serial = serial();
-    let certs = Certs::new();
-    let tr = telerobot(&certs.telerobot, &[&certs.operator], 100.0);
-    let shim = shim(tr.local_addr(), 100.0);
-    let operator = spawn_operator(operator_config(
-        shim.local_addr(),
-        &certs.operator,
-        &certs.telerobot,
-        "alice",
-        10.0,
-        100.0,
-    ));
-    wait_for(Duration::from_secs(15), || {
-        tr.link().status().connected().then_some(())
-    })
-    .unwrap();
+    let (tr, shim, config) = through_shim(&Certs::new(), 100.0, 10.0);
+    let operator = spawn_operator(config);
+    wait_connected(&tr);
     // Warm-up: contact at 1 s, the first model about 2 s later.
     std::thread::sleep(Duration::from_secs(5));
     let warm = ON_LOOPS.load(Relaxed);

@@ -27,10 +27,18 @@ pub struct LoopArgs {
     /// Print the report as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// Busy-spin before each loop deadline [µs], 0 to 200.
+    /// Loop options.
+    #[command(flatten)]
+    pub rt: RtArgs,
+}
+
+/// The real-time loop options of `run` and `demo`.
+#[derive(Clone, Debug, Args)]
+pub struct RtArgs {
+    /// Busy-spin before each loop deadline [µs], 0 to 200 (the demo's shim spins half of it).
     #[arg(long, value_name = "US", default_value_t = 100.0)]
     pub spin_us: f64,
-    /// Run the haptic loop under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
+    /// Run the loop thread(s) under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
     #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
     pub realtime_priority: Option<u8>,
 }
@@ -50,12 +58,9 @@ pub struct DemoArgs {
     /// Print the report as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// Busy-spin before each loop deadline [µs], 0 to 200 (both loops; the shim spins half).
-    #[arg(long, value_name = "US", default_value_t = 100.0)]
-    pub spin_us: f64,
-    /// Run both loops under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
-    #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
-    pub realtime_priority: Option<u8>,
+    /// Loop options (both loops).
+    #[command(flatten)]
+    pub rt: RtArgs,
     /// Connect the operator to the telerobot directly, without the netem shim (needs
     /// --delay-ms 0): the loopback latency figure.
     #[arg(long)]
@@ -75,8 +80,9 @@ pub enum LoopArgsError {
 
 impl LoopArgs {
     fn periodic(&self) -> Result<PeriodicConfig, LoopArgsError> {
-        if !(self.spin_us.is_finite() && (0.0..=200.0).contains(&self.spin_us)) {
-            return Err(LoopArgsError::Spin(self.spin_us));
+        let spin = self.rt.spin_us;
+        if !(spin.is_finite() && (0.0..=200.0).contains(&spin)) {
+            return Err(LoopArgsError::Spin(spin));
         }
         if let Some(s) = self.seconds
             && !(s.is_finite() && (1.0..=86_400.0).contains(&s))
@@ -84,7 +90,7 @@ impl LoopArgs {
             return Err(LoopArgsError::Seconds(s));
         }
         Ok(PeriodicConfig {
-            spin_ns: (self.spin_us * 1e3).round() as i64,
+            spin_ns: (spin * 1e3).round() as i64,
             ..PeriodicConfig::default()
         })
     }
@@ -106,7 +112,7 @@ pub(super) fn run_cmd(
         safety: SafetyConfig::default(),
         seconds: args.seconds,
         periodic: args.periodic()?,
-        realtime_priority: args.realtime_priority,
+        realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
         node: mmt::node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
@@ -121,8 +127,8 @@ pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow:
     let config = DemoConfig {
         delay_ms: args.delay_ms,
         seconds: args.seconds,
-        spin_us: args.spin_us,
-        realtime_priority: args.realtime_priority,
+        spin_us: args.rt.spin_us,
+        realtime_priority: args.rt.realtime_priority,
         via_shim: !args.no_shim,
         ..DemoConfig::default()
     };

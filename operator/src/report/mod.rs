@@ -21,8 +21,8 @@ use mmt::node::operator::OperatorOutput;
 use mmt::scene::Scene;
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
-use protocol::telerobot_to_operator::{ModelTerms, ParameterSet, Parameters, SurfaceFrame};
-use rt::{LatencyReport, LinkReport, TimingReport};
+use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
+use rt::{LatencyReport, LinkReport, Quantiles, TimingReport};
 use serde::Serialize;
 
 use crate::device::ForceRecord;
@@ -46,7 +46,7 @@ pub struct NetworkedReport {
     /// The one-way delay the run was set up with (the demo's shim), if known \[ms\].
     pub set_delay_ms: Option<f64>,
     /// The newest parameters received, as sent.
-    pub parameters_received: Vec<(String, f64)>,
+    pub parameters_received: Option<Parameters>,
     /// The haptic loop's timing.
     pub loop_timing: TimingReport,
     /// Ticks the loop skipped after stalls (filled with the previous tick in the series).
@@ -186,7 +186,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         measured_delay_ms: estimate.map(|e| e.delay_ms),
         delay_estimate: estimate,
         set_delay_ms: facts.set_delay_ms,
-        parameters_received: end.parameters.map_or_else(Vec::new, received_terms),
+        parameters_received: end.parameters,
         loop_timing: facts.timing,
         missing_ticks,
         link: facts.link,
@@ -298,44 +298,6 @@ fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<Delay
     )
 }
 
-/// The terms of the newest parameter sets, named.
-fn received_terms(p: Parameters) -> Vec<(String, f64)> {
-    let mut out = Vec::new();
-    for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
-        let Some(set) = set else { continue };
-        let mut push = |name: &str, v: Option<f64>| {
-            if let Some(v) = v {
-                out.push((format!("{axes} {name}"), v));
-            }
-        };
-        match set.terms {
-            ModelTerms::KelvinVoigt {
-                k_n_per_m,
-                b_ns_per_m,
-            } => {
-                push("k", Some(k_n_per_m));
-                push("b", Some(b_ns_per_m));
-            }
-            ModelTerms::SlidingMass {
-                mass_kg,
-                k_ground_n_per_m,
-                b_ground_ns_per_m,
-                k_contact_n_per_m,
-                b_contact_ns_per_m,
-                coulomb_n,
-            } => {
-                push("m", Some(mass_kg));
-                push("k1", k_ground_n_per_m);
-                push("b1", Some(b_ground_ns_per_m));
-                push("k2", Some(k_contact_n_per_m));
-                push("b2", Some(b_contact_ns_per_m));
-                push("Fc", coulomb_n);
-            }
-        }
-    }
-    out
-}
-
 /// The stdout table: `mmt experiment`'s, then the networked figures.
 pub fn table(r: &NetworkedReport) -> String {
     let mut out = mmt::report::experiment::table(&r.experiment);
@@ -346,149 +308,102 @@ pub fn table(r: &NetworkedReport) -> String {
 fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
-    if r.experiment.parameters.is_empty() && !r.parameters_received.is_empty() {
-        let terms: Vec<String> = r
-            .parameters_received
-            .iter()
-            .map(|(n, v)| format!("{n} {v:.4}"))
-            .collect();
-        writeln!(out, "parameters received: {}", terms.join(", "))?;
+    // p50 / p99 / max of a distribution in µs, or in ms.
+    let us = |q: &Quantiles| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
+    let ms = |q: &Quantiles| {
+        format!(
+            "{:.2} / {:.2} / {:.2} ms",
+            q.p50_us / 1e3,
+            q.p99_us / 1e3,
+            q.max_us / 1e3
+        )
+    };
+    let count = |t: &TimingReport| format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks);
+    // Without the scene's truth, the parameters as received.
+    if let Some(p) = r
+        .parameters_received
+        .filter(|_| r.experiment.parameters.is_empty())
+    {
+        for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
+            if let Some(set) = set {
+                writeln!(out, "parameters received, {axes}: {:.4?}", set.terms)?;
+            }
+        }
     }
-    let row = |out: &mut String, name: &str, value: String| writeln!(out, "{name:<46} {value:>14}");
-    writeln!(out, "network")?;
+    let mut rows: Vec<(String, String)> = Vec::new();
+    let mut row = |name: &str, value: String| rows.push((name.to_owned(), value));
     row(
-        out,
         "measured_delay_ms (rendered leads measured)",
         opt(r.measured_delay_ms, "ms"),
-    )?;
+    );
     if let Some(d) = r.set_delay_ms {
-        row(out, "  set one-way delay", format!("{d:.2} ms"))?;
+        row("  set one-way delay", format!("{d:.2} ms"));
     }
     if let Some(e) = &r.delay_estimate {
-        row(
-            out,
-            "  peak correlation",
-            format!("{:.4}", e.peak_correlation),
-        )?;
+        row("  peak correlation", format!("{:.4}", e.peak_correlation));
     }
     let t = &r.loop_timing;
-    row(
-        out,
-        "haptic loop period p50 / p99 / max",
-        format!(
-            "{:.0} / {:.0} / {:.0} µs",
-            t.period.p50_us, t.period.p99_us, t.period.max_us
-        ),
-    )?;
-    row(
-        out,
-        "  lateness p50 / p99 / max",
-        format!(
-            "{:.1} / {:.1} / {:.0} µs",
-            t.lateness.p50_us, t.lateness.p99_us, t.lateness.max_us
-        ),
-    )?;
-    row(
-        out,
-        "  work p50 / p99 / max",
-        format!(
-            "{:.1} / {:.1} / {:.0} µs",
-            t.work.p50_us, t.work.p99_us, t.work.max_us
-        ),
-    )?;
-    row(
-        out,
-        "  ticks, overruns, skipped",
-        format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks),
-    )?;
+    row("haptic loop period p50 / p99 / max", us(&t.period));
+    row("  lateness p50 / p99 / max", us(&t.lateness));
+    row("  work p50 / p99 / max", us(&t.work));
+    row("  ticks, overruns, skipped", count(t));
     let l = &r.link;
     row(
-        out,
         "datagrams sent / received",
         format!("{} / {}", l.sent, l.received),
-    )?;
+    );
     row(
-        out,
         "  late / lost / duplicate / garbage",
         format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
-    )?;
+    );
     row(
-        out,
         "RTT smoothed / min",
         format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
-    )?;
+    );
     row(
-        out,
         "clock offset (telerobot − operator)",
         opt(l.clock_offset_ms, "ms"),
-    )?;
-    // One-way latencies in ms, and beyond the set delay (the stack's own queueing) in µs.
-    let latency = |out: &mut String, name: &str, l: &LatencyReport| -> std::fmt::Result {
-        row(
-            out,
-            name,
-            format!(
-                "{:.2} / {:.2} / {:.2} ms",
-                l.p50_us / 1e3,
-                l.p99_us / 1e3,
-                l.max_us / 1e3
-            ),
-        )?;
+    );
+    // One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
+    let mut latency = |name: &str, l: &LatencyReport| {
+        let q = l.quantiles();
+        row(name, ms(&q));
         if let Some(d) = r.set_delay_ms {
-            let extra = |us: f64| us - d * 1e3;
-            row(
-                out,
-                "  beyond the set delay p50 / p99 / max",
-                format!(
-                    "{:.0} / {:.0} / {:.0} µs",
-                    extra(l.p50_us),
-                    extra(l.p99_us),
-                    extra(l.max_us)
-                ),
-            )?;
+            let beyond = |v: f64| v - d * 1e3;
+            let extra = Quantiles {
+                p50_us: beyond(q.p50_us),
+                p99_us: beyond(q.p99_us),
+                max_us: beyond(q.max_us),
+            };
+            row("  beyond the set delay p50 / p99 / max", us(&extra));
         }
-        Ok(())
     };
     if let Some(t) = &r.telerobot {
         latency(
-            out,
             "uplink: command sample → telerobot receipt",
             &t.command_latency,
-        )?;
+        );
     }
     latency(
-        out,
         "downlink: measurement send → operator receipt",
         &r.downlink_latency,
-    )?;
-    row(out, "sessions", r.sessions.to_string())?;
+    );
+    row("sessions", r.sessions.to_string());
     if let Some(t) = &r.telerobot {
-        let p = &t.timing.period;
         row(
-            out,
             "telerobot loop period p50 / p99 / max",
-            format!("{:.0} / {:.0} / {:.0} µs", p.p50_us, p.p99_us, p.max_us),
-        )?;
-        row(
-            out,
-            "  ticks, overruns, skipped",
-            format!(
-                "{} / {} / {}",
-                t.timing.ticks, t.timing.overruns, t.timing.skipped_ticks
-            ),
-        )?;
+            us(&t.timing.period),
+        );
+        row("  ticks, overruns, skipped", count(&t.timing));
     }
     if let Some(s) = &r.shim {
-        let l = &s.lateness;
         row(
-            out,
             "netem release lateness p50 / p99 / max",
-            format!("{:.1} / {:.1} / {:.0} µs", l.p50_us, l.p99_us, l.max_us),
-        )?;
+            us(&s.lateness.quantiles()),
+        );
     }
     let s = &r.safety;
     row(
-        out,
         "safety episodes: watchdog / rate / max / workspace",
         format!(
             "{} / {} / {} / {}",
@@ -497,7 +412,11 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             s.saturated.episodes,
             s.workspace.episodes
         ),
-    )?;
+    );
+    writeln!(out, "network")?;
+    for (name, value) in rows {
+        writeln!(out, "{name:<46} {value:>14}")?;
+    }
     Ok(())
 }
 
