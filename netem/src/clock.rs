@@ -37,8 +37,14 @@ pub fn ns_since_epoch(t: Instant) -> u64 {
 /// computed from the absolute deadline, so lateness never accumulates), then spins. Returns the
 /// time it woke.
 pub fn sleep_until_ns(deadline_ns: u64, spin_window_ns: u64) -> u64 {
+    sleep_until_on(now_ns, deadline_ns, spin_window_ns)
+}
+
+/// [`sleep_until_ns`] on another monotonic nanosecond clock `now` (e.g. the daemons'
+/// `CLOCK_MONOTONIC` without this module's epoch).
+pub fn sleep_until_on(now: impl Fn() -> u64, deadline_ns: u64, spin_window_ns: u64) -> u64 {
     loop {
-        let now = now_ns();
+        let now = now();
         if now >= deadline_ns {
             return now;
         }

@@ -5,8 +5,9 @@
 //!    max (the max is the worst queueing observed).
 //!
 //! Both daemons' network tasks run in this process on a 2-worker tokio runtime; a thread sends
-//! commands at 1 kHz and a stand-in telerobot loop polls its latest-command slot every ~100 µs
-//! (so not every command is seen; each one seen is timed exactly). Latency is the `Received`
+//! commands at 1 kHz and a stand-in telerobot loop drains its command queue every ~100 µs
+//! (every command is seen, but is taken up to ~100 µs after it arrived; its receipt is stamped
+//! by the network task, so each is timed exactly). Latency is the `Received`
 //! stamp minus the command's `sample_time_ns`, one clock (`CLOCK_MONOTONIC`).
 //!
 //! ```sh

@@ -5,11 +5,13 @@
 //!   Dimension SDK loads and which devices it sees, and what each backend can and cannot do.
 //!   Works with no device and no SDK (says so, exits 0).
 //! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
-//! - `operator run --device SPEC [--connect ADDR --identity DIR --trust TELEROBOT_CRT]` —
-//!   validates the network configuration (if given), parses and opens the device; the haptic
-//!   loop is not built yet (says so, exits 2).
+//! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
+//!   [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
+//!   the network flags it only opens the device and says what it is (exits 2).
+//! - `operator demo [--delay-ms 400] [--seconds 20] [--out DIR] [--json]` — the whole system in
+//!   one process ([`crate::demo`]).
 //!
-//! Not here: logging set-up (main), anything of the haptic loop.
+//! Not here: logging and Ctrl-C set-up (main), anything of the haptic loop.
 
 use std::fmt::Write as _;
 use std::io::Write;
@@ -18,8 +20,10 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
+use rt::Shutdown;
 
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
+pub use run::{DemoArgs, LoopArgs, RtArgs, demo};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
@@ -41,8 +45,10 @@ pub struct Cli {
 pub enum Command {
     /// List the haptic devices and backends this machine offers.
     Devices(DevicesArgs),
-    /// Open a device and run the operator (haptic loop not built yet).
+    /// Run the operator app against a telerobot: haptic loop, network, report.
     Run(RunArgs),
+    /// The whole system in one process over loopback (telerobot, netem shim, scripted operator).
+    Demo(DemoArgs),
     /// Make the operator's certificate and key (DIR/operator.crt, DIR/operator.key).
     GenCert(GenCertArgs),
 }
@@ -106,6 +112,9 @@ pub struct RunArgs {
     /// Network options.
     #[command(flatten)]
     pub net: NetArgs,
+    /// Run length, loop and report options.
+    #[command(flatten)]
+    pub run: LoopArgs,
 }
 
 /// `operator devices`: prints what this machine offers. Always succeeds unless output fails.
@@ -247,11 +256,13 @@ fn render_into(
     Ok(())
 }
 
-/// `operator run`: validates the network configuration, opens the device, warns when it outputs
-/// no force, then stops (haptic loop not built yet; exit code 2).
-pub fn run(args: &RunArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+/// `operator run`: with the network flags, runs the operator app ([`crate::app::run`]) until
+/// `--seconds` or `shutdown` and prints the report; without them, opens the device, says what it
+/// is and stops (exit code 2: nothing to run).
+pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
     let net = args.net.config()?;
     let options = OpenOptions {
+        scripted_length_s: args.run.seconds,
         managed: ManagedConfig {
             enable_ramp: Duration::from_millis(args.enable_ramp_ms),
             ..ManagedConfig::default()
@@ -262,31 +273,33 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
         },
         omega: args.sdk.config()?,
     };
-    let device = open_device(&args.device, &options)?;
-    let spec = device.spec();
-    writeln!(
-        out,
-        "device {}: {} — max force {} N, workspace {}",
-        args.device,
-        spec.name,
-        spec.max_force_n,
-        spec.workspace.describe()
-    )?;
-    if !spec.outputs_force {
-        writeln!(out, "WARNING: {}", no_force_warning(&args.device))?;
-    }
-    if let Some(net) = &net {
+    let Some(net) = net else {
+        let device = open_device(&args.device, &options)?;
+        let spec = device.spec();
         writeln!(
             out,
-            "network: telerobot {} pinned to {}, as '{}'",
-            net.connect, net.telerobot_cert_source, net.operator_name
+            "device {}: {} — max force {} N, workspace {}",
+            args.device,
+            spec.name,
+            spec.max_force_n,
+            spec.workspace.describe()
         )?;
-    }
+        if !spec.outputs_force {
+            writeln!(out, "WARNING: {}", no_force_warning(&args.device))?;
+        }
+        writeln!(
+            out,
+            "operator run: no telerobot given (--connect, --identity, --trust); device opened and closed again."
+        )?;
+        return Ok(ExitCode::from(2));
+    };
     writeln!(
         out,
-        "operator run: the haptic loop is not built yet; device opened and closed again."
+        "network: telerobot {} pinned to {}, as '{}'",
+        net.connect, net.telerobot_cert_source, net.operator_name
     )?;
-    Ok(ExitCode::from(2))
+    run::run_cmd(&args.run, net, args.device.clone(), options, shutdown, out)?;
+    Ok(ExitCode::SUCCESS)
 }
 
 /// The warning printed when the device gives no force feedback.
@@ -299,5 +312,6 @@ pub fn no_force_warning(spec: &DeviceSpec) -> String {
 }
 
 mod net;
+mod run;
 #[cfg(test)]
 mod tests;

@@ -1,16 +1,29 @@
 //! # operator — the operator side of the teleoperation system
 //!
-//! What it is: haptic devices behind one trait with simulated twins ([`device`]), the one safety
-//! layer between renderer and device ([`safety`]), and the command-line entry points of the
-//! `operator` binary ([`cli`]), and the QUIC client with its hand-off to the haptic loop ([`net`]).
-//! Later: the haptic loop stepping `mmt`'s operator node and `demo`.
+//! What it is:
+//! - [`app`]: the operator app — [`app::run`], what `operator run` calls: the QUIC client, the
+//!   1 kHz haptic loop ([`haptic`]) stepping `mmt`'s operator node exactly as the in-process
+//!   harness does, its helper thread ([`helper`]), and the report ([`report`]): `mmt
+//!   experiment`'s figures plus `measured_delay_ms`, loop timing and link statistics;
+//! - [`demo`]: the whole system in one process over loopback (the README's first command);
+//! - [`device`]: haptic devices behind one trait with simulated twins; [`safety`]: the one safety
+//!   layer between renderer and device;
+//! - [`net`]: the QUIC client with its lock-free hand-off to the haptic loop; [`settings`]: the
+//!   operator node's settings from the telerobot's `Welcome`;
+//! - [`cli`]: the command-line entry points of the `operator` binary.
 //!
 //! What it is not: no rendering or estimation logic of its own (that is `mmt`), no wire format
 //! (that is `protocol`). Nothing here reads a clock inside the device and safety layers: `now` is
 //! passed in, so every rule is tested without one.
 
+pub mod app;
 pub mod cli;
+pub mod demo;
 pub mod device;
+pub mod haptic;
+pub mod helper;
 pub mod net;
+pub mod report;
 pub mod safety;
+pub mod settings;
 pub mod vec3;

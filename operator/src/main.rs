@@ -1,4 +1,4 @@
-//! The `operator` binary: parses arguments, sets up logging, calls [`operator::cli`].
+//! The `operator` binary: parses arguments, sets up logging and Ctrl-C, calls [`operator::cli`].
 
 use std::process::ExitCode;
 
@@ -7,25 +7,43 @@ use operator::cli::{Cli, Command};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // The demo's stdout is its report: by default it logs only warnings, and the safety layer's
+    // per-episode events (counted in the report) not at all. RUST_LOG overrides.
+    let default_filter = match cli.command {
+        Command::Demo(_) => "warn,operator::safety=error",
+        _ => "info",
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default_filter)),
         )
         .with_writer(std::io::stderr)
         .init();
     let mut out = std::io::stdout();
+    let shutdown = rt::Shutdown::new();
     let result = match &cli.command {
         Command::Devices(args) => {
             operator::cli::devices(args, &mut out).map(|()| ExitCode::SUCCESS)
         }
-        Command::Run(args) => operator::cli::run(args, &mut out),
         Command::GenCert(args) => {
             operator::cli::gen_cert(args, &mut out).map(|()| ExitCode::SUCCESS)
         }
+        Command::Run(args) => with_signals(&shutdown)
+            .and_then(|()| operator::cli::run(args, shutdown.clone(), &mut out)),
+        Command::Demo(args) => with_signals(&shutdown).and_then(|()| {
+            operator::cli::demo(args, shutdown.clone(), &mut out).map(|()| ExitCode::SUCCESS)
+        }),
     };
     result.unwrap_or_else(|e| {
         eprintln!("operator: {e:#}");
         ExitCode::FAILURE
     })
+}
+
+/// Ctrl-C and SIGTERM stop the run (it still reports).
+fn with_signals(shutdown: &rt::Shutdown) -> anyhow::Result<()> {
+    shutdown
+        .on_signals()
+        .map_err(|e| anyhow::anyhow!("cannot watch for Ctrl-C: {e}"))
 }

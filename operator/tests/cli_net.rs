@@ -45,9 +45,15 @@ fn gen_cert_and_network_flags_make_a_client_config() {
     let config = args.net.config().unwrap().unwrap();
     assert_eq!(config.connect, "127.0.0.1:4433".parse().unwrap());
     assert_eq!(config.tuning.expected_one_way_delay.as_millis(), 400);
+    // Stopped before a telerobot answered: says where it was going, then why it stopped.
+    let stopped = rt::Shutdown::new();
+    stopped.trigger();
     let mut out = Vec::new();
-    operator::cli::run(&args, &mut out).unwrap();
+    let e = operator::cli::run(&args, stopped, &mut out)
+        .unwrap_err()
+        .to_string();
     assert!(String::from_utf8(out).unwrap().contains("pinned to"));
+    assert!(e.contains("stopped before a session"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -83,7 +89,7 @@ fn network_flags_come_together_and_files_are_named() {
     };
     let e = args.net.config().unwrap_err().to_string();
     assert!(e.contains("/nonexistent/operator.crt"), "{e}");
-    let e = operator::cli::run(&args, &mut Vec::new())
+    let e = operator::cli::run(&args, rt::Shutdown::new(), &mut Vec::new())
         .unwrap_err()
         .to_string();
     assert!(e.contains("/nonexistent/operator.crt"), "{e}");

@@ -30,7 +30,7 @@ async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
 
     // Operator → telerobot: a command reaches the loop's slot.
     op.link.send_command(command(0.5));
-    let got = eventually(WAIT, || tr.link.latest_command()).await;
+    let got = eventually(WAIT, || tr.link.next_command()).await;
     assert_eq!(got.message.position_m[0], 0.5);
 
     // Telerobot → operator: contact into its slot, measurements queued, a cloud on a stream.
@@ -50,6 +50,8 @@ async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
             velocity_m_per_s: [0.0; 3],
             force_on_tool_n: [0.0, 0.0, i as f64],
             in_contact: false,
+            estimator_stable: false,
+            reconstruction: None,
         }));
     }
     for i in 0..3 {
@@ -138,7 +140,7 @@ async fn a_second_operator_gets_busy_and_the_first_one_stays_in_control() {
     );
     assert!(alice.link.status().connected());
     alice.link.send_command(command(1.0));
-    eventually(WAIT, || tr.link.latest_command()).await;
+    eventually(WAIT, || tr.link.next_command()).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -164,7 +166,7 @@ async fn the_operator_reconnects_when_the_telerobot_comes_back() {
     })
     .await;
     op.link.send_command(command(2.0));
-    let got = eventually(WAIT, || tr.link.latest_command()).await;
+    let got = eventually(WAIT, || tr.link.next_command()).await;
     assert_eq!((got.message.position_m[0], got.session), (2.0, 1));
 }
 

@@ -199,6 +199,14 @@ pub struct Measurement {
     pub force_on_tool_n: [f64; 3],
     /// Whether the robot was in contact.
     pub in_contact: bool,
+    /// Whether the telerobot's estimators all pass every gate, the confidence gate included
+    /// (`DESIGN.md` §11.4): the report's "time to stable parameters".
+    pub estimator_stable: bool,
+    /// This tick's terms of the tangential estimator's a-priori reconstruction error, while it
+    /// is learning and confident: `[Σ y², Σ (y − ψᵀθ̂)²]` over the tick's axes, `θ̂` from before
+    /// the update; `None` otherwise. Summed over a run, `100·√(Σe/Σy)` is the reconstruction
+    /// error \[%\] (thesis: about 5 %).
+    pub reconstruction: Option<[f64; 2]>,
 }
 
 /// One point-cloud frame, sent alone on its own stream.
@@ -317,7 +325,9 @@ fn check_state_sync(s: &StateSync) -> Result<(), NonFinite> {
 fn check_measurement(m: &Measurement) -> Result<(), NonFinite> {
     finite::vector("position_m", &m.position_m)?;
     finite::vector("velocity_m_per_s", &m.velocity_m_per_s)?;
-    finite::vector("force_on_tool_n", &m.force_on_tool_n)
+    finite::vector("force_on_tool_n", &m.force_on_tool_n)?;
+    m.reconstruction
+        .map_or(Ok(()), |r| finite::vector("reconstruction", &r))
 }
 
 fn check_cloud(c: &CloudFrame) -> Result<(), NonFinite> {

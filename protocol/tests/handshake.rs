@@ -48,27 +48,36 @@ fn matching_versions_open_the_session() {
 
 #[test]
 fn a_mismatched_hello_is_refused_naming_both_versions() {
-    let refusal = check_hello(&hello(2)).unwrap_err();
+    let newer = PROTOCOL_VERSION + 1;
+    let refusal = check_hello(&hello(newer)).unwrap_err();
     assert_eq!(
         refusal.to_string(),
-        "protocol version mismatch: telerobot speaks 1, operator speaks 2"
+        format!(
+            "protocol version mismatch: telerobot speaks {PROTOCOL_VERSION}, operator speaks {newer}"
+        )
     );
-    // A version-2 build also puts 2 in the prefix: refused before the body is read.
-    let bytes = with_prefix(2, o2t::encode(&o2t::Message::Hello(hello(2))));
+    // A newer build also puts its version in the prefix: refused before the body is read.
+    let bytes = with_prefix(newer, o2t::encode(&o2t::Message::Hello(hello(newer))));
     assert_eq!(accept_hello(&bytes), Err(refusal));
 }
 
 #[test]
 fn the_operator_names_both_versions_too() {
-    let e = check_welcome(&welcome(3)).unwrap_err();
+    let newer = PROTOCOL_VERSION + 2;
+    let e = check_welcome(&welcome(newer)).unwrap_err();
     assert_eq!(
         e.to_string(),
-        "protocol version mismatch: operator speaks 1, telerobot speaks 3"
+        format!(
+            "protocol version mismatch: operator speaks {PROTOCOL_VERSION}, telerobot speaks {newer}"
+        )
     );
     let refused = t2o::Message::Refused(Refused {
-        reason: Refusal::VersionMismatch { ours: 3, theirs: 1 },
+        reason: Refusal::VersionMismatch {
+            ours: newer,
+            theirs: PROTOCOL_VERSION,
+        },
     });
-    let bytes = with_prefix(3, t2o::encode(&refused));
+    let bytes = with_prefix(newer, t2o::encode(&refused));
     assert_eq!(accept_welcome(&bytes), Err(e));
 }
 

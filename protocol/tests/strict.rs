@@ -5,26 +5,33 @@ mod common;
 use common::{hex, telerobot_samples};
 use common::{largest_operator_datagrams, largest_telerobot_datagrams, operator_samples};
 use protocol::telerobot_to_operator::{CloudFrame, ModelStructure, SceneSummary, Welcome};
-use protocol::{DecodeError, Direction, MAX_BODY_BYTES, MAX_CLOUD_POINTS, MAX_DATAGRAM_BYTES};
+use protocol::{
+    DecodeError, Direction, MAX_BODY_BYTES, MAX_CLOUD_POINTS, MAX_DATAGRAM_BYTES, PROTOCOL_VERSION,
+};
+
+/// `bytes` after this build's version prefix.
+fn versioned(bytes: &[u8]) -> Vec<u8> {
+    let mut v = PROTOCOL_VERSION.to_le_bytes().to_vec();
+    v.extend_from_slice(bytes);
+    v
+}
 use protocol::{operator_to_telerobot as o2t, telerobot_to_operator as t2o};
 
 #[test]
 fn another_version_is_refused_naming_both() {
+    let (ours, theirs) = (PROTOCOL_VERSION, PROTOCOL_VERSION + 1);
     let mut bytes = o2t::encode(&o2t::Message::Bye);
-    bytes[..2].copy_from_slice(&2u16.to_le_bytes());
+    bytes[..2].copy_from_slice(&theirs.to_le_bytes());
     let e = o2t::decode(&bytes).unwrap_err();
-    assert_eq!(e, DecodeError::Version { ours: 1, theirs: 2 });
+    assert_eq!(e, DecodeError::Version { ours, theirs });
     assert_eq!(
         e.to_string(),
-        "protocol version mismatch: this side speaks 1, the peer sent 2"
+        format!("protocol version mismatch: this side speaks {ours}, the peer sent {theirs}")
     );
     // The prefix is checked first: even a body this build cannot read names the versions.
     assert_eq!(
         t2o::decode(&[0x02, 0x01, 0xff]),
-        Err(DecodeError::Version {
-            ours: 1,
-            theirs: 258
-        })
+        Err(DecodeError::Version { ours, theirs: 258 })
     );
 }
 
@@ -40,7 +47,7 @@ fn too_short_for_the_version() {
 
 #[test]
 fn a_trailing_byte_is_rejected() {
-    let e = o2t::decode(&[0x01, 0x00, 0x03, 0x00]).unwrap_err();
+    let e = o2t::decode(&versioned(&[0x03, 0x00])).unwrap_err();
     assert_eq!(
         e,
         DecodeError::TrailingBytes {
@@ -58,7 +65,7 @@ fn a_trailing_byte_is_rejected() {
 
 #[test]
 fn truncation_and_unknown_variants_say_what_was_expected() {
-    let e = o2t::decode(&[0x01, 0x00, 0x02, 0x07]).unwrap_err();
+    let e = o2t::decode(&versioned(&[0x02, 0x07])).unwrap_err();
     assert!(
         matches!(e, DecodeError::Truncated { needed: 1, .. }),
         "{e:?}"
@@ -67,7 +74,7 @@ fn truncation_and_unknown_variants_say_what_was_expected() {
         e.to_string(),
         "truncated operator-to-telerobot message: expected at least 1 more bytes"
     );
-    let e = t2o::decode(&[0x01, 0x00, 0x08]).unwrap_err();
+    let e = t2o::decode(&versioned(&[0x08])).unwrap_err();
     assert!(
         e.to_string()
             .starts_with("malformed telerobot-to-operator message: "),
@@ -115,7 +122,7 @@ fn nan_is_rejected_in_every_float_field() {
     let counts: Vec<usize> = largest_telerobot_datagrams().iter().map(floats).collect();
     assert_eq!(
         counts,
-        [14, 19, 4, 9, 0],
+        [14, 19, 4, 11, 0],
         "Parameters, Contact, StateSync, Measurement, Pong"
     );
 
@@ -222,7 +229,7 @@ fn every_datagram_fits_the_bound() {
 #[test]
 fn a_garbage_length_prefix_does_not_allocate() {
     // Hello whose name claims 2^40 bytes: refused by the limit before allocating.
-    let mut bytes = vec![0x01, 0x00, 0x00, 0x01, 0xfd];
+    let mut bytes = versioned(&[0x00, 0x01, 0xfd]);
     bytes.extend_from_slice(&(1u64 << 40).to_le_bytes());
     let e = o2t::decode(&bytes).unwrap_err();
     assert_eq!(

@@ -2,22 +2,22 @@
 //! into config structs, and one function per subcommand.
 //!
 //! - `telerobot gen-cert --out DIR` — writes `DIR/telerobot.crt` and `DIR/telerobot.key`.
-//! - `telerobot run --listen ADDR --identity DIR --trust OPERATOR_CRT` — validates everything
-//!   network-related into a [`RunConfig`], creates the hand-off, and calls [`telerobot_loop`],
-//!   which is **not built yet**.
+//! - `telerobot run [--scene FILE] --listen ADDR --identity DIR --trust OPERATOR_CRT` — validates
+//!   the scene, the identity, the trusted certificates and the loop settings into a
+//!   [`RunConfig`] and runs the daemon ([`crate::run`]) until Ctrl-C.
 
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use protocol::telerobot_to_operator::SceneSummary;
-use rustls_pki_types::CertificateDer;
+use mmt::scene::{Scene, SceneError};
+use rt::{PeriodicConfig, Shutdown};
 use transport::LinkTuning;
 use transport::identity::{self, Identity, IdentityError};
 use transport::tuning::TuningError;
 
-use crate::net::{self, NetConfig, NetIo, TelerobotLink};
+pub use crate::daemon::RunConfig;
 
 /// The identity name: files `telerobot.crt` / `telerobot.key`.
 pub const IDENTITY_NAME: &str = "telerobot";
@@ -67,19 +67,19 @@ pub struct RunArgs {
     /// Expected one-way delay of the link [ms]; sets QUIC's initial RTT estimate.
     #[arg(long, value_name = "MS", default_value_t = 20.0)]
     pub expected_delay_ms: f64,
-}
-
-/// `telerobot run`'s network settings, validated.
-#[derive(Clone, Debug)]
-pub struct RunConfig {
-    /// Where to listen.
-    pub listen: SocketAddr,
-    /// The telerobot's certificate and key.
-    pub identity: Identity,
-    /// Trusted operator certificates, with the file each came from.
-    pub trusted_operators: Vec<(PathBuf, CertificateDer<'static>)>,
-    /// quinn settings.
-    pub tuning: LinkTuning,
+    /// Scene file (TOML, e.g. scenes/exp1.toml); default: the built-in exp-1 scene.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Seed of the simulated sensors' and camera's noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Busy-spin before each loop deadline [µs], 0 to 200 (absorbs the kernel timer's lateness;
+    /// costs that share of a core).
+    #[arg(long, value_name = "US", default_value_t = 100.0)]
+    pub spin_us: f64,
+    /// Run the loop thread under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
+    #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
+    pub realtime_priority: Option<u8>,
 }
 
 /// Why the command line could not be turned into a [`RunConfig`].
@@ -91,6 +91,20 @@ pub enum ConfigError {
     /// `--expected-delay-ms` is out of range.
     #[error("--expected-delay-ms: {0}")]
     Tuning(#[from] TuningError),
+    /// The scene file could not be read.
+    #[error("cannot read scene file {file}: {source}")]
+    SceneFile {
+        /// The file.
+        file: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The scene is invalid (the message names the field, the value and the allowed range).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// `--spin-us` is out of range.
+    #[error("--spin-us {0}: expected 0 to 200 µs")]
+    Spin(f64),
 }
 
 fn parse_addr(text: &str) -> Result<SocketAddr, String> {
@@ -99,8 +113,23 @@ fn parse_addr(text: &str) -> Result<SocketAddr, String> {
 }
 
 impl RunConfig {
-    /// Reads the identity and the trusted certificates; every error names the file.
+    /// Reads the scene, the identity and the trusted certificates; every error names the file.
     pub fn from_args(args: &RunArgs) -> Result<RunConfig, ConfigError> {
+        let scene = match &args.scene {
+            Some(path) => {
+                let file = path.display().to_string();
+                let text =
+                    std::fs::read_to_string(path).map_err(|source| ConfigError::SceneFile {
+                        file: file.clone(),
+                        source,
+                    })?;
+                Scene::from_toml(&text, &file)?
+            }
+            None => Scene::exp1(),
+        };
+        if !(args.spin_us.is_finite() && (0.0..=200.0).contains(&args.spin_us)) {
+            return Err(ConfigError::Spin(args.spin_us));
+        }
         let identity = Identity::read_pem(&args.identity, IDENTITY_NAME)?;
         let trusted_operators = args
             .trust
@@ -112,22 +141,15 @@ impl RunConfig {
             identity,
             trusted_operators,
             tuning: LinkTuning::with_expected_delay_ms(args.expected_delay_ms)?,
-        })
-    }
-
-    /// The server's configuration once the scene is known.
-    pub fn net_config(&self, scene: SceneSummary) -> NetConfig {
-        let mut config = NetConfig::new(
-            self.listen,
-            self.identity.clone(),
-            self.trusted_operators
-                .iter()
-                .map(|(_, c)| c.clone())
-                .collect(),
+            start_m: RunConfig::default_start(&scene),
             scene,
-        );
-        config.tuning = self.tuning.clone();
-        config
+            seed: args.seed,
+            periodic: PeriodicConfig {
+                spin_ns: (args.spin_us * 1e3).round() as i64,
+                ..PeriodicConfig::default()
+            },
+            realtime_priority: args.realtime_priority,
+        })
     }
 }
 
@@ -139,23 +161,10 @@ pub fn gen_cert(args: &GenCertArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `telerobot run`: validates the configuration, creates the hand-off, and starts the loop.
-pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+/// `telerobot run`: validates the configuration, then runs the daemon until `shutdown` (Ctrl-C
+/// or SIGTERM in the binary).
+pub fn run(args: &RunArgs, shutdown: Shutdown) -> anyhow::Result<()> {
     let config = RunConfig::from_args(args)?;
-    for (path, _) in &config.trusted_operators {
-        tracing::info!(file = %path.display(), "trusting operator certificate");
-    }
-    let (link, io) = net::link(net::DEFAULT_OUTBOX_CAPACITY)?;
-    telerobot_loop(config, link, io)
-}
-
-/// ──────────── NOT BUILT YET: the telerobot's real-time loop (another engineer's task). ────────────
-///
-/// Receives the validated network configuration and both halves of the hand-off. It is to load
-/// the scene, start a tokio runtime running
-/// `net::serve(config.net_config(scene), io, shutdown)`, and run the 1 kHz loop on its own
-/// thread with `link` (`link.latest_command()` in, `link.send(..)` out).
-pub fn telerobot_loop(config: RunConfig, link: TelerobotLink, io: NetIo) -> anyhow::Result<()> {
-    let _ = (config, link, io);
-    anyhow::bail!("telerobot loop not built yet (the network configuration is valid)")
+    crate::run(config, shutdown)?;
+    Ok(())
 }

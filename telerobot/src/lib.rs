@@ -1,11 +1,25 @@
 //! # telerobot — the telerobot daemon
 //!
-//! What it is: the QUIC server and its hand-off to the real-time loop ([`net`]), and the
-//! command line of the `telerobot` binary ([`cli`]). Later: robot bridges and the real-time loop
-//! stepping `mmt`'s telerobot node.
+//! What it is:
+//! - [`daemon`]: the daemon — [`Telerobot::start`] / [`Telerobot::stop`], and [`run`] around a
+//!   shutdown signal (what `telerobot run` calls): the network runtime, the 1 kHz loop, the camera
+//!   thread and a housekeeping thread;
+//! - [`control`]: the real-time loop stepping `mmt`'s telerobot node against the robot bridge,
+//!   exactly as the in-process harness steps it (`mmt::experiment`);
+//! - [`bridge`]: the robot bridge trait and the simulated bridge (the scene's world);
+//! - [`camera`]: the simulated camera and its kd-tree, off the real-time thread;
+//! - [`net`]: the QUIC server and its lock-free hand-off to the loop;
+//! - [`cli`]: the command line of the `telerobot` binary.
 //!
 //! What it is not: no estimation logic of its own (that lives in `mmt`'s telerobot node), no wire
-//! format (that is `protocol`), no QUIC plumbing shared with the operator (that is `transport`).
+//! format (that is `protocol`), no QUIC plumbing shared with the operator (that is `transport`),
+//! no loop timing of its own (that is `rt`).
 
+pub mod bridge;
+pub mod camera;
 pub mod cli;
+pub mod control;
+pub mod daemon;
 pub mod net;
+
+pub use daemon::{DaemonError, RunConfig, Summary, Telerobot, run};

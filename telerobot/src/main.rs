@@ -1,4 +1,4 @@
-//! The `telerobot` binary: parses arguments, sets up logging, calls [`telerobot::cli`].
+//! The `telerobot` binary: parses arguments, sets up logging and Ctrl-C, calls [`telerobot::cli`].
 
 use std::process::ExitCode;
 
@@ -16,7 +16,13 @@ fn main() -> ExitCode {
         .init();
     let result = match &cli.command {
         Command::GenCert(args) => telerobot::cli::gen_cert(args, &mut std::io::stdout()),
-        Command::Run(args) => telerobot::cli::run(args),
+        Command::Run(args) => {
+            let shutdown = rt::Shutdown::new();
+            match shutdown.on_signals() {
+                Ok(()) => telerobot::cli::run(args, shutdown),
+                Err(e) => Err(anyhow::anyhow!("cannot watch for Ctrl-C: {e}")),
+            }
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,7 +3,7 @@
 #![allow(clippy::unwrap_used)]
 
 use clap::Parser;
-use telerobot::cli::{Cli, Command, RunConfig, gen_cert, run};
+use telerobot::cli::{Cli, Command, RunConfig, gen_cert};
 
 fn temp_dir(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("telerobot-cli-{name}-{}", std::process::id()));
@@ -44,8 +44,11 @@ fn gen_cert_writes_a_usable_identity_and_run_validates_it() {
     };
     let config = RunConfig::from_args(&args).unwrap();
     assert_eq!(config.trusted_operators.len(), 1);
-    let e = run(&args).unwrap_err().to_string();
-    assert!(e.contains("telerobot loop not built yet"), "{e}");
+    // The built-in exp-1 scene by default, the tool 1 cm above its surface.
+    assert_eq!(config.scene.name, "exp1");
+    assert_eq!(config.start_m, [0.0, 0.0, 0.01]);
+    assert_eq!(config.scene_summary().cloud_rate_hz, Some(30.0));
+    assert_eq!(config.periodic.spin_ns, 100_000);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -75,7 +78,48 @@ fn bad_flags_and_files_are_named() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("--trust"), "{e}");
-    let Command::Run(args) = parse(&[
+    let Command::Run(args) = parse(&run_line(&[])) else {
+        panic!()
+    };
+    let e = RunConfig::from_args(&args).unwrap_err().to_string();
+    assert!(e.contains("/nonexistent/telerobot.crt"), "{e}");
+}
+
+#[test]
+fn scene_and_loop_flags_are_checked() {
+    let run_args = |extra: &[&str]| {
+        let Command::Run(args) = parse(&run_line(extra)) else {
+            panic!()
+        };
+        args
+    };
+    let e = RunConfig::from_args(&run_args(&["--scene", "/nonexistent/s.toml"]))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("cannot read scene file /nonexistent/s.toml"),
+        "{e}"
+    );
+    let bad = temp_dir("scene").with_extension("toml");
+    std::fs::write(&bad, "name = \"x\"\n[environment]\nmass_kg = -1.0\n").unwrap();
+    let e = RunConfig::from_args(&run_args(&["--scene", bad.to_str().unwrap()]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(bad.to_str().unwrap()), "{e}");
+    std::fs::remove_file(&bad).unwrap();
+    let e = RunConfig::from_args(&run_args(&["--spin-us", "500"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--spin-us 500"), "{e}");
+    let e = Cli::try_parse_from(run_line(&["--realtime-priority", "0"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--realtime-priority"), "{e}");
+}
+
+/// `telerobot run` with valid flags (files that do not exist) and `extra`.
+fn run_line<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
         "telerobot",
         "run",
         "--listen",
@@ -84,9 +128,7 @@ fn bad_flags_and_files_are_named() {
         "/nonexistent",
         "--trust",
         "y",
-    ]) else {
-        panic!()
-    };
-    let e = RunConfig::from_args(&args).unwrap_err().to_string();
-    assert!(e.contains("/nonexistent/telerobot.crt"), "{e}");
+    ];
+    args.extend_from_slice(extra);
+    args
 }

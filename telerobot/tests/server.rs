@@ -166,7 +166,7 @@ async fn a_trusted_operator_is_welcomed_and_datagrams_flow_both_ways() {
     assert_eq!(tr.link.status().operator().as_deref(), Some("alice"));
 
     raw.command(1, 0.25);
-    let got = eventually(|| tr.link.latest_command()).await;
+    let got = eventually(|| tr.link.next_command()).await;
     assert_eq!(got.message.position_m, [0.25, 0.0, 0.0]);
     assert_eq!(got.session, 1);
     assert!(got.received_ns >= got.message.header.sample_time_ns);
@@ -276,17 +276,23 @@ async fn a_hello_of_another_version_is_refused_naming_both_versions() {
     let op = Identity::generate(&["operator"]).unwrap();
     let tr = start(&[&op]);
     let mut raw = connect(&tr, &op).await.unwrap();
-    let answer = raw.hello("alice", 2).await;
+    let theirs = PROTOCOL_VERSION + 1;
+    let answer = raw.hello("alice", theirs).await;
     let t2o::Message::Refused(refused) = answer else {
         panic!("{answer:?}")
     };
     assert_eq!(
         refused.reason,
-        Refusal::VersionMismatch { ours: 1, theirs: 2 }
+        Refusal::VersionMismatch {
+            ours: PROTOCOL_VERSION,
+            theirs
+        }
     );
     assert_eq!(
         refused.reason.to_string(),
-        "protocol version mismatch: telerobot speaks 1, operator speaks 2"
+        format!(
+            "protocol version mismatch: telerobot speaks {PROTOCOL_VERSION}, operator speaks {theirs}"
+        )
     );
     // The telerobot closes the connection with the reason once we have read it.
     let closed = raw.conn.closed().await;
@@ -302,7 +308,7 @@ async fn garbage_datagrams_are_counted_and_ignored() {
     let mut raw = connect(&tr, &op).await.unwrap();
     raw.hello("alice", PROTOCOL_VERSION).await;
     raw.command(1, 1.0);
-    eventually(|| tr.link.latest_command()).await;
+    eventually(|| tr.link.next_command()).await;
 
     let mut garbage: Vec<Vec<u8>> = Vec::new();
     // Pseudo-random bytes (fixed LCG), the version prefix then random, a truncated command,
@@ -342,7 +348,7 @@ async fn garbage_datagrams_are_counted_and_ignored() {
         raw.conn.send_datagram(g.into()).unwrap();
     }
     raw.command(3, 3.0);
-    let got = eventually(|| tr.link.latest_command()).await;
+    let got = eventually(|| tr.link.next_command()).await;
     assert_eq!(got.message.position_m[0], 3.0, "the session goes on");
     let stats = eventually(|| Some(tr.link.stats()).filter(|s| s.garbage == sent)).await;
     assert_eq!((stats.accepted, stats.lost), (2, 1), "{stats:?}");

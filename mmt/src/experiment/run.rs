@@ -2,7 +2,6 @@
 
 use super::metrics::{NodeInfo, RunInfo, Series, analyse, parameter_report};
 use super::{ExperimentConfig, ExperimentError, ExperimentReport};
-use crate::model::col;
 use crate::node::NodeSettings;
 use crate::node::operator::{OperatorConfig, OperatorNode};
 use crate::node::telerobot::{CommandSample, TelerobotNode};
@@ -118,7 +117,6 @@ pub fn run(
         let frame = camera
             .frame(now, &world, robot, &sample.object_offset_m)
             .map_err(|e| ExperimentError::Cloud(e.to_string()))?;
-        let prior = telerobot.tangential_estimator().map(|e| e.theta());
         let took_frame = frame.is_some();
         let messages = telerobot.step(now, target.command_sample_time_ns, &sample.measured, frame);
         for m in messages {
@@ -133,32 +131,12 @@ pub fn run(
                 shared_clouds.pop_front();
             }
         }
-        let reconstruction = match (prior, telerobot.tangential_estimator()) {
-            (Some(theta), Some(est))
-                if est.phase() == crate::estimator::Phase::Learning && est.is_confident() =>
-            {
-                Some(
-                    est.regressions()
-                        .iter()
-                        .map(|r| {
-                            (
-                                r.y,
-                                (0..col::COUNT).map(|i| theta.0[i] * r.psi[i]).sum::<f64>(),
-                            )
-                        })
-                        .fold((0.0, 0.0), |(a, b), (y, p)| {
-                            (a + y * y, b + (y - p) * (y - p))
-                        }),
-                )
-            }
-            _ => None,
-        };
         series.push_telerobot(
             target.command_sample_time_ns,
             sample.truth.force_n,
             sample.in_contact,
             telerobot.is_stable(),
-            reconstruction,
+            telerobot.reconstruction(),
             sample.tangential_state,
             operator.tangential_state(),
         );

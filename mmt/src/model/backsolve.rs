@@ -496,26 +496,41 @@ impl Problem {
     }
 
     /// Condition number of `∂ log θ/∂ log φ` (rows: fitted coefficients; columns: parameters).
+    /// Fixed-size matrices (the two shapes a problem has: 5 × 4, 6 × 5), so that the telerobot's
+    /// real-time loop, which back-solves, allocates nothing.
     fn condition(&self, q: &[f64; MAX_P]) -> f64 {
         let base = self.model_theta(q);
         let step = 1e-6;
-        let mut m = nalgebra::DMatrix::<f64>::zeros(self.n_rows, self.p);
+        let mut m = [[0.0; MAX_P]; 6];
         for j in 0..self.p {
             let (mut qp, mut qm) = (*q, *q);
             qp[j] += step;
             qm[j] -= step;
             let (tp, tm) = (self.model_theta(&qp), self.model_theta(&qm));
             for (k, &i) in self.rows[..self.n_rows].iter().enumerate() {
-                m[(k, j)] = (tp[i].ln() - tm[i].ln()) / (2.0 * step);
+                m[k][j] = (tp[i].ln() - tm[i].ln()) / (2.0 * step);
             }
         }
         if !base.iter().all(|v| v.is_finite()) {
             return f64::INFINITY;
         }
-        let sv = m.singular_values();
-        let (max, min) = sv.iter().fold((0.0f64, f64::INFINITY), |(mx, mn), &s| {
-            (mx.max(s), mn.min(s))
-        });
+        let extremes = |sv: &[f64]| {
+            sv.iter().fold((0.0f64, f64::INFINITY), |(mx, mn), &s| {
+                (mx.max(s), mn.min(s))
+            })
+        };
+        let (max, min) = match (self.n_rows, self.p) {
+            (5, 4) => extremes(
+                nalgebra::SMatrix::<f64, 5, 4>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
+            _ => extremes(
+                nalgebra::SMatrix::<f64, 6, 5>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
+        };
         if min > 0.0 { max / min } else { f64::INFINITY }
     }
 

@@ -98,6 +98,7 @@ pub struct TelerobotNode {
     frame_id: u64,
     last_frame: Option<SurfaceFrame>,
     shear_anchor: [f64; 2],
+    reconstruction: Option<(f64, f64)>,
     stats: TelerobotStats,
 }
 
@@ -133,6 +134,7 @@ impl TelerobotNode {
             frame_id: 0,
             last_frame: None,
             shear_anchor: [0.0; 2],
+            reconstruction: None,
             stats: TelerobotStats::default(),
             settings,
         })
@@ -203,6 +205,7 @@ impl TelerobotNode {
     ) -> &[Message] {
         self.out.clear();
         self.stats.ticks += 1;
+        self.reconstruction = None;
         if let Some(frame) = camera {
             self.take_frame(now_ns, frame);
         }
@@ -228,7 +231,10 @@ impl TelerobotNode {
         if let Some(f) = tracked.frame {
             self.last_frame = Some(f);
         }
+        let prior = self.tangential.as_ref().map(|e| e.theta());
         self.estimate(now_ns, sample, &tracked);
+        self.reconstruction =
+            prior.and_then(|theta| reconstruction(&theta, self.tangential.as_ref()?));
         self.emit(now_ns, command_sample_time_ns, sample, &detected, &tracked);
         &self.out
     }
@@ -387,6 +393,8 @@ impl TelerobotNode {
             velocity_m_per_s: sample.velocity_m_per_s,
             force_on_tool_n: sample.force_n,
             in_contact: tracked.in_contact,
+            estimator_stable: self.is_stable(),
+            reconstruction: self.reconstruction.map(|(y2, e2)| [y2, e2]),
         }));
     }
 
@@ -425,6 +433,13 @@ impl TelerobotNode {
             .all(|e| e.as_ref().is_none_or(|e| e.is_confident()))
     }
 
+    /// This tick's `(Σ y², Σ (y − ψᵀθ̂)²)` of the tangential estimator, `θ̂` from before the
+    /// tick's update, while it is learning and confident (`None` otherwise): summed over a run,
+    /// the a-priori reconstruction error (thesis: about 5 %).
+    pub fn reconstruction(&self) -> Option<(f64, f64)> {
+        self.reconstruction
+    }
+
     /// The observer's contact deflection and mass velocity per tangential axis.
     pub fn observed_state(&self) -> [(f64, f64); 2] {
         self.observer
@@ -448,6 +463,24 @@ impl TelerobotNode {
     pub fn settings(&self) -> &NodeSettings {
         &self.settings
     }
+}
+
+/// `(Σ y², Σ (y − ψᵀθ))` over the estimator's last regressions, if it is learning and confident.
+fn reconstruction(theta: &crate::model::Theta, est: &Estimator) -> Option<(f64, f64)> {
+    use crate::model::col;
+    (est.phase() == crate::estimator::Phase::Learning && est.is_confident()).then(|| {
+        est.regressions()
+            .iter()
+            .map(|r| {
+                (
+                    r.y,
+                    (0..col::COUNT).map(|i| theta.0[i] * r.psi[i]).sum::<f64>(),
+                )
+            })
+            .fold((0.0, 0.0), |(a, b), (y, p)| {
+                (a + y * y, b + (y - p) * (y - p))
+            })
+    })
 }
 
 /// Contact from the scene's true surface, when there is no cloud.

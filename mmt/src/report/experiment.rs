@@ -144,10 +144,6 @@ fn force_panels(s: &Series) -> Vec<Panel> {
         series: vec![
             line("measured", decimated(s, |i| s.measured[i].map(along))),
             line("rendered", decimated(s, |i| Some(along(s.rendered[i])))),
-            line(
-                "rendered, remote-only contact",
-                decimated(s, |i| Some(along(s.rendered_remote[i]))),
-            ),
         ],
     }];
     panels.push(Panel {
@@ -159,12 +155,18 @@ fn force_panels(s: &Series) -> Vec<Panel> {
         series: vec![
             line("measured", decimated(s, |i| s.measured[i].map(normal))),
             line("rendered", decimated(s, |i| Some(normal(s.rendered[i])))),
-            line(
-                "rendered, remote-only contact",
-                decimated(s, |i| Some(normal(s.rendered_remote[i]))),
-            ),
         ],
     });
+    // The shadow node's line, when a run had one (the networked app has none: its series
+    // repeats the operator's).
+    if s.rendered_remote != s.rendered {
+        for (panel, axis) in panels.iter_mut().zip([s.axis, s.normal]) {
+            panel.series.push(line(
+                "rendered, remote-only contact",
+                decimated(s, |i| Some(vec3::dot(s.rendered_remote[i], axis))),
+            ));
+        }
+    }
     panels
 }
 

@@ -85,12 +85,12 @@ fn run_parses_the_device_and_stops_before_the_network() {
         panic!("not run")
     };
     let mut out = Vec::new();
-    let code = run(&args, &mut out).unwrap();
+    let code = run(&args, Shutdown::new(), &mut out).unwrap();
     assert_eq!(code, ExitCode::from(2));
     let text = String::from_utf8(out).unwrap();
     assert!(text.contains("scripted:hold"), "{text}");
     assert!(text.contains("WARNING"), "{text}");
-    assert!(text.contains("not built yet"), "{text}");
+    assert!(text.contains("no telerobot given"), "{text}");
 }
 
 #[test]
@@ -124,6 +124,40 @@ fn bad_watchdog_is_refused() {
     let Command::Run(args) = cli.command else {
         panic!("not run")
     };
-    let e = run(&args, &mut Vec::new()).unwrap_err().to_string();
+    let e = run(&args, Shutdown::new(), &mut Vec::new())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("31.875 ms"), "{e}");
+}
+
+#[test]
+fn loop_and_demo_flags_are_checked() {
+    let cli = Cli::try_parse_from(["operator", "demo"]).unwrap();
+    let Command::Demo(args) = cli.command else {
+        panic!("not demo")
+    };
+    assert_eq!((args.delay_ms, args.seconds), (400.0, 20.0));
+    assert_eq!(args.out, PathBuf::from("out/demo"));
+    let e = demo(
+        &DemoArgs {
+            seconds: 1.0,
+            ..args
+        },
+        Shutdown::new(),
+        &mut Vec::new(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("--seconds = 1 is out of range"), "{e}");
+    let e = Cli::try_parse_from([
+        "operator",
+        "run",
+        "--device",
+        "scripted:exp1",
+        "--realtime-priority",
+        "100",
+    ])
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("--realtime-priority"), "{e}");
 }

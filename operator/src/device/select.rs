@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::str::FromStr;
 
-use mmt::trajectory::{Hold, Trajectory};
+use mmt::trajectory::{NAMES, Trajectory, by_name};
 
 use super::omega::{OmegaBackend, OmegaConfig};
 use super::replay::ReplayTrajectory;
@@ -82,6 +82,9 @@ impl std::fmt::Display for DeviceSpec {
 /// Settings for every backend; only the chosen backend's part is used.
 #[derive(Clone, Debug, Default)]
 pub struct OpenOptions {
+    /// Nominal length of a scripted trajectory \[s\] (its contact episodes are placed within it);
+    /// `None`: the profiles' default, 60 s.
+    pub scripted_length_s: Option<f64>,
     /// State machine settings (enable ramp, servo watchdog).
     pub managed: ManagedConfig,
     /// SpaceMouse settings.
@@ -97,7 +100,10 @@ pub fn open_device(
 ) -> Result<Box<dyn HapticDevice>, DeviceError> {
     Ok(match spec {
         DeviceSpec::Scripted { name } => Box::new(ManagedDevice::new(
-            ScriptedBackend::new(scripted_trajectory(name)?, "scripted"),
+            ScriptedBackend::new(
+                scripted_trajectory(name, options.scripted_length_s.unwrap_or(60.0))?,
+                "scripted",
+            ),
             options.managed,
         )?),
         DeviceSpec::Replay { path } => Box::new(ManagedDevice::new(
@@ -115,17 +121,16 @@ pub fn open_device(
     })
 }
 
-/// Names [`scripted_trajectory`] knows.
-pub const SCRIPTED_NAMES: &[&str] = &["hold"];
+/// Names [`scripted_trajectory`] knows: `mmt`'s named profiles.
+pub const SCRIPTED_NAMES: &[&str] = &NAMES;
 
-/// Resolves `scripted:NAME`. Knows `hold` (the origin, forever); the experiment trajectories
-/// (exp1, chirp, steps) are added here when `mmt` provides them.
-pub fn scripted_trajectory(name: &str) -> Result<Box<dyn Trajectory>, DeviceError> {
-    match name {
-        "hold" => Ok(Box::new(Hold {
-            position_m: [0.0; 3],
-        })),
-        _ => Err(DeviceError::UnknownTrajectory {
+/// Resolves `scripted:NAME` to `mmt`'s named profile of nominal length `length_s` \[s\], placed on
+/// the default surface (through the origin, normal +z: the exp-1 table), so that it presses into
+/// the scene the telerobot simulates (`hold`: pressed 4 mm into the table, still).
+pub fn scripted_trajectory(name: &str, length_s: f64) -> Result<Box<dyn Trajectory>, DeviceError> {
+    match by_name(name, length_s, [0.0; 3], [0.0, 0.0, 1.0]) {
+        Ok(placed) => Ok(Box::new(placed)),
+        Err(_) => Err(DeviceError::UnknownTrajectory {
             name: name.to_owned(),
             known: SCRIPTED_NAMES.join(", "),
         }),
@@ -194,8 +199,20 @@ mod tests {
 
     #[test]
     fn unknown_trajectory_lists_known_names() {
-        let e = scripted_trajectory("nope").err().unwrap().to_string();
-        assert!(e.contains("'nope'") && e.contains("hold"), "{e}");
+        let e = scripted_trajectory("nope", 60.0).err().unwrap().to_string();
+        assert!(
+            e.contains("'nope'") && e.contains("hold") && e.contains("exp1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_experiment_profiles_are_scripted_devices() {
+        let t = scripted_trajectory("exp1", 20.0).unwrap();
+        assert_eq!((t.name(), t.duration_s()), ("exp1", Some(20.0)));
+        // Hovering above the table at the start, pressed into it in the first episode.
+        assert!(t.sample(0.0).position_m[2] > 0.0);
+        assert!(t.sample(3.0).position_m[2] < 0.0);
     }
 
     #[test]

@@ -232,7 +232,7 @@ pub fn echo_loop(
     delays: Arc<std::sync::Mutex<Vec<i64>>>,
 ) -> Poller {
     Poller::start(move || {
-        if let Some(c) = link.latest_command() {
+        if let Some(c) = link.next_command() {
             let sample = c.message.header.sample_time_ns;
             delays
                 .lock()

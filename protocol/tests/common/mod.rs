@@ -122,6 +122,8 @@ pub fn telerobot_samples() -> Vec<t2o::Message> {
             velocity_m_per_s: [0.0, 0.0, 0.0],
             force_on_tool_n: [0.0, 0.0, -2.0],
             in_contact: false,
+            estimator_stable: true,
+            reconstruction: Some([4.0, 0.25]),
         }),
         t2o::Message::Cloud(CloudFrame {
             frame_id: 9,
@@ -207,6 +209,8 @@ pub fn largest_telerobot_datagrams() -> Vec<t2o::Message> {
             velocity_m_per_s: v,
             force_on_tool_n: v,
             in_contact: true,
+            estimator_stable: true,
+            reconstruction: Some([f64::MAX; 2]),
         }),
         t2o::Message::Pong(Pong {
             id: u64::MAX,
@@ -441,17 +445,23 @@ fn arb_datagram() -> impl Strategy<Value = t2o::Message> {
         vec3(),
         vec3(),
         any::<bool>(),
+        any::<bool>(),
+        proptest::option::of((finite(), finite())),
     )
-        .prop_map(|(header, command_sample_time_ns, p, v, f, in_contact)| {
-            t2o::Message::Measurement(Measurement {
-                header,
-                command_sample_time_ns,
-                position_m: p,
-                velocity_m_per_s: v,
-                force_on_tool_n: f,
-                in_contact,
-            })
-        });
+        .prop_map(
+            |(header, command_sample_time_ns, p, v, f, in_contact, estimator_stable, r)| {
+                t2o::Message::Measurement(Measurement {
+                    header,
+                    command_sample_time_ns,
+                    position_m: p,
+                    velocity_m_per_s: v,
+                    force_on_tool_n: f,
+                    in_contact,
+                    estimator_stable,
+                    reconstruction: r.map(|(y, e)| [y, e]),
+                })
+            },
+        );
     let pong = (any::<u64>(), any::<i64>(), any::<i64>(), any::<i64>()).prop_map(
         |(id, t1_ns, t2_ns, t3_ns)| {
             t2o::Message::Pong(Pong {

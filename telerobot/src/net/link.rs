@@ -17,6 +17,11 @@ use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received};
 /// task that lags more than that loses the oldest.
 pub const DEFAULT_OUTBOX_CAPACITY: usize = 64;
 
+/// Commands queued for the loop \[commands\]: 64 ms at 1 kHz. The loop drains the queue every tick
+/// and hands **every** command to the node's playout buffer (which orders reordered datagrams and
+/// drops stale ones), so a queue, not a latest-value slot; a loop stalled longer loses the oldest.
+pub const COMMAND_QUEUE_CAPACITY: usize = 64;
+
 /// A datagram the telerobot loop sends: the `protocol` datagram kinds, none of which holds heap
 /// data, so pushing one never allocates.
 ///
@@ -168,7 +173,7 @@ pub(crate) struct Shared {
 ///
 /// # What the 1 kHz loop may call
 ///
-/// [`send`](Self::send), [`latest_command`](Self::latest_command), [`stats`](Self::stats),
+/// [`send`](Self::send), [`next_command`](Self::next_command), [`stats`](Self::stats),
 /// [`status`](Self::status)`().connected()/session()/since_ns()`: none of them blocks, locks or
 /// allocates (see [`transport::handoff`]). [`send_cloud`](Self::send_cloud) and
 /// `status().operator()` are for other threads.
@@ -193,7 +198,7 @@ pub fn link(outbox_capacity: usize) -> io::Result<(TelerobotLink, NetIo)> {
     let shared = Arc::new(Shared {
         outbox,
         clouds,
-        commands: Mailbox::latest(),
+        commands: Mailbox::new(COMMAND_QUEUE_CAPACITY),
         stats: LinkStats::new(),
         status: SessionStatus::default(),
     });
@@ -217,10 +222,15 @@ impl TelerobotLink {
         self.shared.outbox.push(datagram)
     }
 
-    /// The newest command received since the last call, stamped with its receipt time; `None`
-    /// if none came (keep using the previous one, or hold still if it is too old). RT-safe.
-    pub fn latest_command(&self) -> Option<Received<Command>> {
+    /// The oldest command not yet taken (in arrival order), stamped with its receipt time;
+    /// `None` when the queue is empty. Take them all every tick. RT-safe.
+    pub fn next_command(&self) -> Option<Received<Command>> {
         self.shared.commands.take()
+    }
+
+    /// Commands dropped from a full command queue (the loop did not drain it), since start.
+    pub fn commands_overwritten(&self) -> u64 {
+        self.shared.commands.overwritten()
     }
 
     /// Offers a point-cloud frame; a frame not yet sent is replaced (latest wins), and one still

@@ -7,7 +7,8 @@
 //!   `Hello`; the answer is `Welcome { scene }`, or `Refused { VersionMismatch }` naming both
 //!   versions, or `Refused { Busy { controlling_operator } }` while another is in control. A
 //!   refused connection is then closed with [`transport::CloseCode::Refused`] and the reason.
-//! - In a session: `Command` datagrams go to the loop's latest-command slot stamped with their
+//! - In a session: `Command` datagrams (the newest of their direction, or reordered ones, which
+//!   the node's playout buffer still orders) go to the loop's command queue stamped with their
 //!   receipt time; `Ping`s are answered at once with a `Pong`; everything else is garbage,
 //!   counted and ignored. The loop's outbox is drained into datagrams as soon as it rings; cloud
 //!   frames go on a stream each.
@@ -30,7 +31,10 @@ use transport::endpoint::{self, CertificateFailure};
 use transport::handoff::BellListener;
 use transport::{CloseCode, EndpointError, Identity, LinkTuning, OperatorPins};
 
-pub use link::{DEFAULT_OUTBOX_CAPACITY, Datagram, NetIo, SessionStatus, TelerobotLink, link};
+pub use link::{
+    COMMAND_QUEUE_CAPACITY, DEFAULT_OUTBOX_CAPACITY, Datagram, NetIo, SessionStatus, TelerobotLink,
+    link,
+};
 
 /// Everything the server needs.
 #[derive(Clone, Debug)]

@@ -6,6 +6,7 @@ use bytes::Bytes;
 use protocol::clock::answer_ping;
 use protocol::handshake::accept_hello;
 use protocol::operator_to_telerobot as o2t;
+use protocol::session::Arrival;
 use protocol::telerobot_to_operator::{self as t2o, CloudFrame, Refusal, Refused, Welcome};
 use quinn::{Connection, RecvStream, SendStream};
 use tokio::sync::oneshot;
@@ -192,7 +193,12 @@ fn on_datagram(
     let received_ns = monotonic_ns();
     match o2t::decode(bytes) {
         Ok(o2t::Message::Command(command)) => {
-            if link.on_header(&command.header, received_ns).is_accepted() {
+            // Reordered commands go on too: the node's playout buffer puts them in order (or
+            // drops them if their turn has passed). Duplicates stop here.
+            if matches!(
+                link.on_header(&command.header, received_ns),
+                Arrival::Newer { .. } | Arrival::Late
+            ) {
                 shared.commands.push(Received {
                     message: command,
                     received_ns,

@@ -1,0 +1,284 @@
+//! `operator run`: the operator app — the network runtime, the haptic loop and its helper thread
+//! — until the run's length or the shutdown signal, then the report ([`crate::report`]).
+//!
+//! Threads:
+//! - `operator-net`: a one-worker tokio runtime running the QUIC client with reconnect
+//!   ([`crate::net::connect_and_run`]);
+//! - `haptic-loop`: the 1 kHz loop ([`crate::haptic`]) on absolute deadlines plus a short spin;
+//! - `haptic-helper`: cloud indices, nodes for reconnections, the recording ([`crate::helper`]).
+//!
+//! The loop starts with the first session (it needs the telerobot's `Welcome` to know what to
+//! render); until then the app waits, retrying the connection.
+
+use std::time::{Duration, Instant};
+
+use mmt::experiment::Series;
+use mmt::node::operator::{OperatorConfig, OperatorNode};
+use mmt::scene::Scene;
+use rt::{Periodic, PeriodicConfig, Shutdown};
+use transport::clock::monotonic_ns;
+
+use crate::device::{DeviceError, DeviceSpec, OpenOptions, open_device};
+use crate::haptic::{Exchange, HapticLoop};
+use crate::helper;
+use crate::net::{self, NetConfig, NetError, OperatorLink};
+use crate::report::{self, NetworkedReport, RunFacts};
+use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
+use crate::settings::{RateError, node_settings};
+
+/// Everything `operator run` needs, validated.
+#[derive(Clone, Debug)]
+pub struct RunConfig {
+    /// The telerobot and the certificates.
+    pub net: NetConfig,
+    /// The device.
+    pub device: DeviceSpec,
+    /// Device settings.
+    pub open: OpenOptions,
+    /// Safety settings (the device's limits come from the device).
+    pub safety: SafetyConfig,
+    /// Run length \[s\] from the first session; `None`: until the shutdown signal.
+    pub seconds: Option<f64>,
+    /// Spin window of the loop (its period comes from the telerobot's control rate).
+    pub periodic: PeriodicConfig,
+    /// `SCHED_FIFO` priority of the loop thread, if wanted.
+    pub realtime_priority: Option<u8>,
+    /// How long to wait for the first session; `None`: until the shutdown signal.
+    pub first_session_timeout: Option<Duration>,
+    /// How the operator node decides contact and keeps in step.
+    pub node: OperatorConfig,
+    /// Report name: `networked`, or `demo`.
+    pub experiment: String,
+    /// What the run knows beyond the wire (the demo): the scene's truth, the seed and the set
+    /// delay.
+    pub known: Option<Known>,
+}
+
+/// What the demo knows about the telerobot.
+#[derive(Clone, Debug)]
+pub struct Known {
+    /// The telerobot's scene (its ground truth).
+    pub scene: Scene,
+    /// The telerobot's seed.
+    pub seed: u64,
+    /// The one-way delay set on the shim \[ms\].
+    pub delay_ms: f64,
+}
+
+/// Why a run could not start or go on.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The device could not be opened.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// A safety setting is invalid.
+    #[error(transparent)]
+    Safety(#[from] SafetyError),
+    /// The loop settings are invalid.
+    #[error(transparent)]
+    Loop(#[from] rt::PeriodicError),
+    /// The telerobot refused us, or we refused it (certificates, version, busy).
+    #[error(transparent)]
+    Net(#[from] NetError),
+    /// The telerobot's control rate cannot be run.
+    #[error(transparent)]
+    Rate(#[from] RateError),
+    /// The operator node could not be built.
+    #[error("operator node: {0}")]
+    Node(#[from] mmt::node::telerobot::NodeError),
+    /// No session within the timeout.
+    #[error("no session with the telerobot at {addr} within {timeout:?}{last}")]
+    NoSession {
+        /// The telerobot's address.
+        addr: std::net::SocketAddr,
+        /// The timeout.
+        timeout: Duration,
+        /// Why the last attempt failed, if known.
+        last: String,
+    },
+    /// Stopped before the first session.
+    #[error("stopped before a session with the telerobot opened")]
+    Stopped,
+    /// A runtime, socket or thread could not be created.
+    #[error("{what}: {source}")]
+    Io {
+        /// What was being created.
+        what: &'static str,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+fn io(what: &'static str) -> impl FnOnce(std::io::Error) -> RunError {
+    move |source| RunError::Io { what, source }
+}
+
+/// A finished run: its report and the time series behind it.
+pub struct Outcome {
+    /// The report.
+    pub report: NetworkedReport,
+    /// The series (for the files of `--out`).
+    pub series: Series,
+}
+
+/// Runs the operator until the run's length or `shutdown`, then reports.
+pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
+    let mut device = open_device(&config.device, &config.open)?;
+    let spec = device.spec().clone();
+    let mut safety = SafetyLayer::new(&spec, &config.safety)?;
+    if !spec.outputs_force {
+        tracing::warn!(device = %config.device, "{}", crate::cli::no_force_warning(&config.device));
+    }
+    let runtime = rt::network_runtime("operator-net").map_err(io("the network runtime"))?;
+    let (link, net_io) = net::link(
+        net::DEFAULT_OUTBOX_CAPACITY,
+        net::DEFAULT_MEASUREMENT_CAPACITY,
+    )
+    .map_err(io("the loop's hand-off"))?;
+    let net_stop = Shutdown::new();
+    let net_task = {
+        let stop = net_stop.clone();
+        runtime.spawn(net::connect_and_run(
+            config.net.clone(),
+            net_io,
+            async move {
+                stop.wait().await;
+            },
+        ))
+    };
+    let stop_network = |task: tokio::task::JoinHandle<Result<(), NetError>>| {
+        net_stop.trigger();
+        runtime
+            .block_on(async { tokio::time::timeout(Duration::from_secs(3), task).await })
+            .ok()
+            .and_then(Result::ok)
+            .unwrap_or(Ok(()))
+    };
+
+    // The first session: its Welcome says what to render.
+    let session = match wait_for_session(&config, &link, &shutdown, &net_task) {
+        Ok(session) => session,
+        Err(e) => {
+            let net_error = stop_network(net_task).err();
+            return Err(net_error.map_or(e, RunError::Net));
+        }
+    };
+    let welcome = link.status().welcome().ok_or(RunError::Stopped)?;
+    let settings = node_settings(&welcome.scene)?;
+    tracing::info!(scene = %welcome.scene.name, rate_hz = welcome.scene.control_rate_hz,
+        normal = ?welcome.scene.normal, tangential = ?welcome.scene.tangential,
+        "session open: rendering the telerobot's scene");
+    device.update(Duration::ZERO)?;
+    let start = safety.command_position(device.measured_cp(), false);
+    let node = Box::new(OperatorNode::new(settings.clone(), config.node, start)?);
+
+    let exchange = std::sync::Arc::new(Exchange::default());
+    let helper_stop = Shutdown::new();
+    let helper = helper::spawn(
+        link.clone(),
+        std::sync::Arc::clone(&exchange),
+        session,
+        config.node,
+        helper_stop.clone(),
+    )
+    .map_err(io("the helper thread"))?;
+    let periodic_config = PeriodicConfig {
+        period_ns: settings.period_ns,
+        ..config.periodic
+    };
+    let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
+    let start_ns = periodic.start_ns();
+    let timing = periodic.timing();
+    let ticks = config
+        .seconds
+        .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64);
+    let haptic = HapticLoop {
+        node,
+        session,
+        device,
+        safety,
+        link: link.clone(),
+        exchange,
+        shutdown: shutdown.clone(),
+        ticks,
+    };
+    let started = Instant::now();
+    let haptic = rt::spawn("haptic-loop", config.realtime_priority, move || {
+        haptic.run(periodic)
+    })
+    .map_err(io("the haptic loop thread"))?;
+    let end = haptic.join();
+    let wall_seconds = started.elapsed().as_secs_f64();
+    helper_stop.trigger();
+    let recording = helper.join();
+    let stats = link.stats();
+    let final_link = stats.into();
+    let overwritten = link.measurements_overwritten();
+    let net_result = stop_network(net_task);
+    let (Ok(end), Ok(recording)) = (end, recording) else {
+        return Err(RunError::Io {
+            what: "the haptic loop",
+            source: std::io::Error::other("a loop thread panicked"),
+        });
+    };
+    if let Err(e) = net_result {
+        tracing::warn!("the network task ended with: {e}");
+    }
+    let facts = RunFacts {
+        experiment: config.experiment.clone(),
+        scene: welcome.scene.name.clone(),
+        left_out: welcome.scene.left_out.clone(),
+        device: config.device.to_string(),
+        seed: config.known.as_ref().map_or(0, |k| k.seed),
+        set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+        truth: config.known.as_ref().map(|k| k.scene.clone()),
+        start_ns,
+        period_ns: settings.period_ns,
+        final_offset_ns: stats.clock_offset_ns,
+        link: final_link,
+        measurements_overwritten: overwritten,
+        timing: timing.report(),
+        wall_seconds,
+    };
+    let (series, report) = report::build(&facts, &recording, &end);
+    Ok(Outcome { report, series })
+}
+
+/// Waits for the first session; returns its number.
+fn wait_for_session(
+    config: &RunConfig,
+    link: &OperatorLink,
+    shutdown: &Shutdown,
+    net_task: &tokio::task::JoinHandle<Result<(), NetError>>,
+) -> Result<u64, RunError> {
+    let waited = Instant::now();
+    let mut logged = false;
+    loop {
+        let status = link.status();
+        if status.connected() && status.welcome().is_some() {
+            return Ok(status.session());
+        }
+        if net_task.is_finished() {
+            // A refusal that retrying will not fix: the caller collects the task's error.
+            return Err(RunError::Stopped);
+        }
+        if shutdown.wait_timeout(Duration::from_millis(10)) {
+            return Err(RunError::Stopped);
+        }
+        if let Some(timeout) = config.first_session_timeout
+            && waited.elapsed() > timeout
+        {
+            return Err(RunError::NoSession {
+                addr: config.net.connect,
+                timeout,
+                last: status
+                    .last_disconnect()
+                    .map_or(String::new(), |r| format!(" (last attempt: {r})")),
+            });
+        }
+        if !logged && waited.elapsed() > Duration::from_secs(2) {
+            logged = true;
+            tracing::info!(telerobot = %config.net.connect, "waiting for the telerobot");
+        }
+    }
+}

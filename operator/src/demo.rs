@@ -1,0 +1,238 @@
+//! `operator demo`: the whole system in one process over real loopback QUIC/UDP — throw-away
+//! certificates in a temporary directory, the telerobot daemon on the built-in exp-1 scene, the
+//! netem shim delaying each direction, and the operator app with the scripted exp-1 device —
+//! then the report. The same code paths as the two binaries: [`telerobot::Telerobot::start`]
+//! (what `telerobot run` runs) and [`crate::app::run`] (what `operator run` runs).
+//!
+//! ```text
+//!  operator app ──QUIC/UDP──▶ netem shim (delay each way) ──▶ telerobot daemon
+//!  127.0.0.1:*                127.0.0.1:*                      127.0.0.1:*
+//! ```
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use mmt::scene::Scene;
+use netem::{LinkConfig, ShimConfig};
+use rt::{PeriodicConfig, Shutdown};
+use telerobot::Telerobot;
+use transport::LinkTuning;
+use transport::identity::{self, Identity};
+
+use crate::app::{self, Known, Outcome, RunConfig, RunError};
+use crate::device::{DeviceSpec, OpenOptions};
+use crate::net::NetConfig;
+use crate::report::ShimReport;
+use crate::safety::SafetyConfig;
+
+/// The demo's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoConfig {
+    /// One-way delay each way \[ms\], 0 to 2000. Default 400 (the thesis's experiment 3).
+    pub delay_ms: f64,
+    /// Length of the run \[s\], 5 to 600. Default 20.
+    pub seconds: f64,
+    /// Spin window of both loops \[µs\] (the shim spins half of it), 0 to 200. Default 100.
+    pub spin_us: f64,
+    /// Seed of the simulated telerobot. Default 1.
+    pub seed: u64,
+    /// `SCHED_FIFO` priority of both loops, if wanted (needs `CAP_SYS_NICE`). Default none.
+    pub realtime_priority: Option<u8>,
+    /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
+    /// operator connects to the telerobot directly: the loopback latency figure.
+    pub via_shim: bool,
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        DemoConfig {
+            delay_ms: 400.0,
+            seconds: 20.0,
+            spin_us: 100.0,
+            seed: 1,
+            realtime_priority: None,
+            via_shim: true,
+        }
+    }
+}
+
+/// Why the demo failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DemoError {
+    /// A setting out of range.
+    #[error("{field} = {value} is out of range: expected {expected}")]
+    Setting {
+        /// The setting.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// The range.
+        expected: &'static str,
+    },
+    /// The certificates could not be made.
+    #[error("throw-away certificates: {0}")]
+    Identity(#[from] transport::IdentityError),
+    /// The link tuning.
+    #[error(transparent)]
+    Tuning(#[from] transport::tuning::TuningError),
+    /// The telerobot daemon could not start.
+    #[error("telerobot: {0}")]
+    Telerobot(#[from] telerobot::DaemonError),
+    /// The shim could not start.
+    #[error("netem shim: {0}")]
+    Shim(#[from] netem::shim::ShimError),
+    /// The operator app failed.
+    #[error("operator: {0}")]
+    Operator(#[from] RunError),
+}
+
+impl DemoConfig {
+    fn validate(&self) -> Result<(), DemoError> {
+        let check = |field, value: f64, ok: bool, expected| {
+            if ok {
+                Ok(())
+            } else {
+                Err(DemoError::Setting {
+                    field,
+                    value,
+                    expected,
+                })
+            }
+        };
+        check(
+            "--delay-ms",
+            self.delay_ms,
+            (0.0..=2000.0).contains(&self.delay_ms),
+            "0 to 2000 ms",
+        )?;
+        check(
+            "--seconds",
+            self.seconds,
+            (5.0..=600.0).contains(&self.seconds),
+            "5 to 600 s",
+        )?;
+        check(
+            "--delay-ms without the shim",
+            self.delay_ms,
+            self.via_shim || self.delay_ms == 0.0,
+            "0 ms (only the shim adds delay)",
+        )?;
+        check(
+            "--spin-us",
+            self.spin_us,
+            (0.0..=200.0).contains(&self.spin_us),
+            "0 to 200 µs",
+        )
+    }
+}
+
+/// Runs the demo (about `seconds` plus a few seconds of set-up). `shutdown` ends it early.
+pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError> {
+    config.validate()?;
+    // Written to files and read back, as `gen-cert` and the two `run`s do.
+    let dir = TempDir::new();
+    let names = ["telerobot", "localhost"];
+    let (_, tr_cert, _) = Identity::generate_files(dir.path(), "telerobot", &names)?;
+    let (_, op_cert, _) = Identity::generate_files(dir.path(), "operator", &["operator"])?;
+    let tuning = LinkTuning::with_expected_delay_ms(config.delay_ms)?;
+    let spin_ns = (config.spin_us * 1e3).round() as i64;
+    let periodic = PeriodicConfig {
+        spin_ns,
+        ..PeriodicConfig::default()
+    };
+    let loopback: SocketAddr = ([127, 0, 0, 1], 0).into();
+    let scene = Scene::exp1();
+    let telerobot = Telerobot::start(telerobot::RunConfig {
+        listen: loopback,
+        identity: Identity::read_pem(dir.path(), "telerobot")?,
+        trusted_operators: vec![(op_cert.clone(), identity::read_cert(&op_cert)?)],
+        tuning: tuning.clone(),
+        start_m: telerobot::RunConfig::default_start(&scene),
+        scene: scene.clone(),
+        seed: config.seed,
+        periodic,
+        realtime_priority: config.realtime_priority,
+    })?;
+    let shim = if config.via_shim {
+        let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+        let mut shim_config = ShimConfig::new(loopback, telerobot.local_addr());
+        shim_config.up = delay.clone();
+        shim_config.down = delay;
+        shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
+        Some(netem::shim::start(shim_config)?)
+    } else {
+        None
+    };
+    let connect = shim
+        .as_ref()
+        .map_or(telerobot.local_addr(), netem::ShimHandle::local_addr);
+    tracing::info!(telerobot = %telerobot.local_addr(), %connect, delay_ms = config.delay_ms,
+        "demo: telerobot up");
+
+    let mut net = NetConfig::new(
+        connect,
+        Identity::read_pem(dir.path(), "operator")?,
+        identity::read_cert(&tr_cert)?,
+        tr_cert.display().to_string(),
+        "demo",
+    );
+    net.tuning = tuning;
+    let device = DeviceSpec::Scripted {
+        name: "exp1".to_owned(),
+    };
+    let operator = app::run(
+        RunConfig {
+            net,
+            device,
+            open: OpenOptions {
+                scripted_length_s: Some(config.seconds),
+                ..OpenOptions::default()
+            },
+            safety: SafetyConfig::default(),
+            seconds: Some(config.seconds),
+            periodic,
+            realtime_priority: config.realtime_priority,
+            first_session_timeout: Some(Duration::from_secs(15)),
+            node: mmt::node::operator::OperatorConfig::default(),
+            experiment: "demo".to_owned(),
+            known: Some(Known {
+                scene,
+                seed: config.seed,
+                delay_ms: config.delay_ms,
+            }),
+        },
+        shutdown,
+    );
+    let summary = telerobot.stop();
+    let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
+    let mut outcome = operator?;
+    let shim_stats = shim_stats?;
+    let r = &mut outcome.report;
+    r.experiment.telerobot_stats = summary.last.node;
+    r.telerobot = Some(summary);
+    r.shim = shim_stats.as_ref().map(ShimReport::from);
+    Ok(outcome)
+}
+
+/// A temporary directory removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new() -> TempDir {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        TempDir(std::env::temp_dir().join(format!("mmt-demo-{}-{nanos}", std::process::id())))
+    }
+
+    fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}

@@ -1,0 +1,233 @@
+//! The operator's 1 kHz haptic loop: device → operator node → safety layer → device force, and
+//! the command out. It steps `mmt`'s operator node exactly as the in-process harness does
+//! (`mmt::experiment`), on its own OS thread.
+//!
+//! Per tick (tick `k`, nominal time `now = start + k·period`; the node's time is always nominal,
+//! the device's and the safety layer's is the tick's actual start):
+//! 1. a fresh node prepared for a new session (a reconnect: new `Welcome`, new model) is swapped
+//!    in, the old one handed back to be dropped off this thread;
+//! 2. the newest `Parameters`, `Contact` and `StateSync` of this session go to the node
+//!    (latest-value slots, lock-free); the newest cloud index (built by the helper thread);
+//! 3. the device is read; the safety layer maps its position (clutch, scale);
+//! 4. the node renders the force from its local model and makes the command — with the link
+//!    stalled it keeps rendering from the last model it has;
+//! 5. the safety layer shapes the force (saturation, workspace, watchdog, rate) for `servo_cf`;
+//! 6. the command goes to the network task while a session is open; a [`TickRecord`] goes to the
+//!    helper thread for the report.
+//!
+//! Nothing here allocates, frees, locks or logs per tick (the safety layer and the device log one
+//! event when a rule starts or stops acting, or the device faults).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use mmt::contact::CloudIndex;
+use mmt::node::operator::{OperatorNode, OperatorStats};
+use protocol::telerobot_to_operator::{Message, Parameters, SurfaceFrame};
+use rt::{Periodic, Shutdown, Tick};
+use transport::Mailbox;
+
+use crate::device::{ForceRecord, HapticDevice};
+use crate::net::OperatorLink;
+use crate::safety::{ForceTick, SafetyLayer, SafetyStats};
+use crate::vec3;
+
+/// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
+pub const TICK_QUEUE: usize = 8192;
+
+/// What one tick did, for the report (by tick number).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TickRecord {
+    /// Tick number (the command's sample time is `start + index·period`).
+    pub index: u64,
+    /// Position handed to the node (the command) \[m\], world frame.
+    pub position_m: [f64; 3],
+    /// The node's force \[N\]: what the model renders, before the safety layer.
+    pub force_n: [f64; 3],
+    /// The node is in contact.
+    pub in_contact: bool,
+    /// The node renders a model.
+    pub rendering: bool,
+}
+
+/// What the haptic loop exchanges with the helper thread (all lock-free).
+pub struct Exchange {
+    /// Helper → loop: `(session, index)` of the newest received cloud.
+    pub clouds: Mailbox<(u64, Arc<CloudIndex>)>,
+    /// Helper → loop: a node for a newer session.
+    pub spare: Mailbox<(u64, Box<OperatorNode>)>,
+    /// Loop → helper: nodes replaced, to drop.
+    pub retired: Mailbox<Box<OperatorNode>>,
+    /// Loop → helper: one record per tick.
+    pub ticks: Mailbox<TickRecord>,
+}
+
+impl Default for Exchange {
+    fn default() -> Self {
+        Exchange {
+            clouds: Mailbox::latest(),
+            spare: Mailbox::latest(),
+            retired: Mailbox::new(4),
+            ticks: Mailbox::new(TICK_QUEUE),
+        }
+    }
+}
+
+/// The loop's parts.
+pub(crate) struct HapticLoop {
+    pub(crate) node: Box<OperatorNode>,
+    /// The session the node belongs to.
+    pub(crate) session: u64,
+    pub(crate) device: Box<dyn HapticDevice>,
+    pub(crate) safety: SafetyLayer,
+    pub(crate) link: OperatorLink,
+    pub(crate) exchange: Arc<Exchange>,
+    pub(crate) shutdown: Shutdown,
+    /// Stop after this many ticks (`--seconds`), or at the shutdown signal.
+    pub(crate) ticks: Option<u64>,
+}
+
+/// What the loop hands back when it stops.
+pub struct LoopEnd {
+    /// The device (disabled).
+    pub device: Box<dyn HapticDevice>,
+    /// What the safety layer did.
+    pub safety: SafetyStats,
+    /// The forces written to the device.
+    pub force_record: ForceRecord,
+    /// The last node's counters.
+    pub node: OperatorStats,
+    /// Ticks run (the last tick's number + 1).
+    pub ticks: u64,
+    /// The newest surface frame the telerobot reported (the report's axes).
+    pub frame: Option<SurfaceFrame>,
+    /// The newest parameters received.
+    pub parameters: Option<Parameters>,
+    /// Sessions whose node the loop ran.
+    pub sessions: u64,
+}
+
+impl HapticLoop {
+    /// Runs until the tick budget or the shutdown signal.
+    pub(crate) fn run(mut self, mut periodic: Periodic) -> LoopEnd {
+        let start_ns = periodic.start_ns();
+        let mut state = State {
+            start_ns,
+            last_params_ns: None,
+            frame: None,
+            parameters: None,
+            sessions: 1,
+            ticks: 0,
+        };
+        if let Err(e) = self.device.enable(Duration::ZERO) {
+            tracing::error!("cannot enable the device: {e}; forces stay off");
+        }
+        loop {
+            let tick = periodic.wait();
+            if self.shutdown.is_triggered() || self.ticks.is_some_and(|n| tick.index >= n) {
+                break;
+            }
+            self.tick(tick, &mut state);
+            state.ticks = tick.index + 1;
+        }
+        let end = Duration::from_nanos(
+            u64::try_from(transport::clock::monotonic_ns() - start_ns).unwrap_or(0),
+        );
+        if let Err(e) = self.device.disable(end) {
+            tracing::warn!("disabling the device: {e}");
+        }
+        LoopEnd {
+            safety: *self.safety.stats(),
+            force_record: *self.device.force_record(),
+            node: self.node.stats(),
+            device: self.device,
+            ticks: state.ticks,
+            frame: state.frame,
+            parameters: state.parameters,
+            sessions: state.sessions,
+        }
+    }
+
+    fn tick(&mut self, tick: Tick, state: &mut State) {
+        let now = tick.deadline_ns;
+        let actual =
+            Duration::from_nanos(u64::try_from(tick.started_ns - state.start_ns).unwrap_or(0));
+        if let Some((session, node)) = self.exchange.spare.take()
+            && session > self.session
+        {
+            let old = std::mem::replace(&mut self.node, node);
+            self.exchange.retired.push(old);
+            self.session = session;
+            state.last_params_ns = None;
+            state.sessions += 1;
+        }
+        self.take_messages(now, state);
+        if let Some((session, index)) = self.exchange.clouds.take()
+            && session == self.session
+        {
+            self.node.set_cloud(index);
+        }
+        // A device that fails faults itself (forces off, logged once); the node keeps the last
+        // reading.
+        let _ = self.device.update(actual);
+        let measured = self.device.measured_cp();
+        let position = self.safety.command_position(measured, false);
+        let map = self.safety.position_map();
+        let velocity = if map.clutched() {
+            vec3::ZERO
+        } else {
+            vec3::scale(self.device.measured_cv(), map.scale().get())
+        };
+        let out = self.node.step(now, position, velocity);
+        let params_age = state
+            .last_params_ns
+            .map(|t| Duration::from_nanos(u64::try_from(tick.started_ns - t).unwrap_or(0)));
+        let force = self.safety.filter_force(&ForceTick {
+            now: actual,
+            measured_cp: measured,
+            params_age,
+            force_n: out.force_n,
+        });
+        // A refused write faults the device, which then holds zero by itself.
+        let _ = self.device.servo_cf(actual, force);
+        if self.link.status().connected() {
+            self.link.send_command(out.command);
+        }
+        self.exchange.ticks.push(TickRecord {
+            index: tick.index,
+            position_m: position,
+            force_n: out.force_n,
+            in_contact: out.in_contact,
+            rendering: out.rendering,
+        });
+    }
+
+    /// Hands this session's newest network values to the node.
+    fn take_messages(&mut self, now: i64, state: &mut State) {
+        let session = self.session;
+        if let Some(p) = self.link.parameters().filter(|r| r.session == session) {
+            state.last_params_ns = Some(p.received_ns);
+            state.parameters = Some(p.message);
+            self.node.on_message(&Message::Parameters(p.message), now);
+        }
+        if let Some(c) = self.link.contact().filter(|r| r.session == session) {
+            if c.message.frame.is_some() {
+                state.frame = c.message.frame;
+            }
+            self.node.on_message(&Message::Contact(c.message), now);
+        }
+        if let Some(s) = self.link.state_sync().filter(|r| r.session == session) {
+            self.node.on_message(&Message::StateSync(s.message), now);
+        }
+    }
+}
+
+/// The loop's own bookkeeping.
+struct State {
+    start_ns: i64,
+    last_params_ns: Option<i64>,
+    frame: Option<SurfaceFrame>,
+    parameters: Option<Parameters>,
+    sessions: u64,
+    ticks: u64,
+}

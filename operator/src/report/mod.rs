@@ -1,0 +1,438 @@
+//! The report of a networked run: the same figures as `mmt experiment` (computed by
+//! `mmt::experiment::analyse` from a [`Series`] built out of what the operator recorded), plus
+//! what only a real link has — `measured_delay_ms` by cross-correlation ([`delay`]), the haptic
+//! loop's timing, the link's counters and latency, the safety layer's trips.
+//!
+//! How the series is built: operator tick `k` is the command sampled at `t0 + k·T`; each
+//! `Measurement` names the command it executed (`command_sample_time_ns`), so the force the
+//! telerobot measured lines up with the force rendered for the same command — "rendered shifted
+//! by the delay", exactly. The telerobot's ground truth is not on the wire: the "true" force is
+//! the measured one (sensor noise included), the true contact is the telerobot's tracked contact,
+//! and the contact-deflection drift figure is left out. There is no shadow node in the app, so
+//! the remote-only contact figures are left out too.
+
+pub mod delay;
+
+use std::fmt::Write as _;
+
+use mmt::experiment::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
+use mmt::node::gated_from_wire;
+use mmt::node::operator::OperatorOutput;
+use mmt::scene::Scene;
+use protocol::Header;
+use protocol::operator_to_telerobot::Command;
+use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
+use rt::{LatencyReport, LinkReport, Quantiles, TimingReport};
+use serde::Serialize;
+
+use crate::device::ForceRecord;
+use crate::haptic::LoopEnd;
+use crate::helper::Recording;
+use crate::safety::SafetyStats;
+use crate::vec3;
+
+pub use delay::{DelayEstimate, LagRange};
+
+/// Everything a networked run reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct NetworkedReport {
+    /// The figures of `mmt experiment`.
+    #[serde(flatten)]
+    pub experiment: ExperimentReport,
+    /// Lead of the rendered over the measured tangential force, by cross-correlation \[ms\].
+    pub measured_delay_ms: Option<f64>,
+    /// The cross-correlation behind it.
+    pub delay_estimate: Option<DelayEstimate>,
+    /// The one-way delay the run was set up with (the demo's shim), if known \[ms\].
+    pub set_delay_ms: Option<f64>,
+    /// The newest parameters received, as sent.
+    pub parameters_received: Option<Parameters>,
+    /// The haptic loop's timing.
+    pub loop_timing: TimingReport,
+    /// Ticks the loop skipped after stalls (filled with the previous tick in the series).
+    pub missing_ticks: u64,
+    /// The link as the operator saw it.
+    pub link: LinkReport,
+    /// Measurement receipt − send time mapped with the clock offset: the downlink's one-way
+    /// latency \[µs\].
+    pub downlink_latency: LatencyReport,
+    /// Measurements received (and lost to a full queue before the report thread took them).
+    pub measurements: (u64, u64),
+    /// Sessions the haptic loop ran (1 + reconnections).
+    pub sessions: u64,
+    /// Cloud frames indexed and refused.
+    pub clouds: (u64, u64),
+    /// What the safety layer did.
+    pub safety: SafetyStats,
+    /// The forces written to the device.
+    pub device_forces: ForceRecord,
+    /// The device.
+    pub device: String,
+    /// Wall-clock length of the haptic loop \[s\].
+    pub wall_seconds: f64,
+    /// The telerobot daemon's summary (the demo, which runs it).
+    pub telerobot: Option<telerobot::Summary>,
+    /// The netem shim's figures (the demo).
+    pub shim: Option<ShimReport>,
+}
+
+/// The netem shim's figures.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ShimReport {
+    /// Release lateness (actual − due send time), both directions \[µs\].
+    pub lateness: LatencyReport,
+    /// Datagrams forwarded up (operator → telerobot) and down.
+    pub forwarded: (u64, u64),
+    /// Datagrams dropped by the link model (loss, queue limit), up and down.
+    pub dropped: (u64, u64),
+}
+
+impl From<&netem::ShimStats> for ShimReport {
+    fn from(s: &netem::ShimStats) -> Self {
+        ShimReport {
+            lateness: LatencyReport::of_summary(&s.lateness),
+            forwarded: (s.up.forwarded, s.down.forwarded),
+            dropped: (
+                s.up.dropped_loss + s.up.dropped_limit,
+                s.down.dropped_loss + s.down.dropped_limit,
+            ),
+        }
+    }
+}
+
+/// What a run knew about itself.
+#[derive(Clone, Debug)]
+pub struct RunFacts {
+    /// `networked` (`operator run`) or `demo`.
+    pub experiment: String,
+    /// Scene name and left-out terms, from the `Welcome`.
+    pub scene: String,
+    /// Terms the scene's model leaves out, from the `Welcome`.
+    pub left_out: Vec<String>,
+    /// The device (`scripted:exp1`, …).
+    pub device: String,
+    /// Seed of the simulated telerobot, if known (0 otherwise).
+    pub seed: u64,
+    /// The set one-way delay, if known (the demo) \[ms\].
+    pub set_delay_ms: Option<f64>,
+    /// The scene's ground truth, if known (the demo): the parameter report compares against it.
+    pub truth: Option<Scene>,
+    /// Tick 0's time [ns, operator clock] and the period \[ns\].
+    pub start_ns: i64,
+    /// Tick period \[ns\].
+    pub period_ns: i64,
+    /// The clock offset at the end (telerobot − operator) \[ns\], for measurements taken before
+    /// the first estimate.
+    pub final_offset_ns: Option<i64>,
+    /// Link counters at the end.
+    pub link: LinkReport,
+    /// Measurements lost to the full queue.
+    pub measurements_overwritten: u64,
+    /// The loop's timing.
+    pub timing: TimingReport,
+    /// Wall-clock length \[s\].
+    pub wall_seconds: f64,
+}
+
+/// Builds the series and the report of a run.
+pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, NetworkedReport) {
+    let frame = end.frame.unwrap_or(SurfaceFrame {
+        normal: [0.0, 0.0, 1.0],
+        tangent1: [1.0, 0.0, 0.0],
+        tangent2: [0.0, 1.0, 0.0],
+    });
+    let (series, missing_ticks) = series(facts, rec, frame);
+    // The delay takes the run's set delay when known (the demo), else the measured one: the
+    // thesis's contact-latency figure is two of it.
+    let estimate = measured_delay(facts, rec, &series);
+    let info = RunInfo {
+        experiment: facts.experiment.clone(),
+        scene: facts.scene.clone(),
+        left_out: facts.left_out.clone(),
+        trajectory: facts.device.clone(),
+        seed: facts.seed,
+        delay_ms: facts
+            .set_delay_ms
+            .or(estimate.map(|e| e.delay_ms))
+            .unwrap_or(0.0),
+    };
+    let parameters = match (&facts.truth, end.parameters) {
+        (Some(scene), Some(p)) => {
+            let gated = |s: Option<ParameterSet>| s.and_then(|s| gated_from_wire(&s).ok());
+            let (n, t) = (gated(p.normal), gated(p.tangential));
+            parameter_report(scene, [n.as_ref(), t.as_ref()])
+        }
+        _ => Vec::new(),
+    };
+    let nodes = NodeInfo {
+        parameters,
+        operator: end.node,
+        ..NodeInfo::default()
+    };
+    let mut experiment = analyse(&info, &series, nodes);
+    // No shadow node runs in the app: its figures would repeat the operator's.
+    experiment.rms_error_pct_remote_contact = None;
+    experiment.contact_switch_latency_ms.remote_only = None;
+    let mut downlink: Vec<i64> = rec
+        .measurements
+        .iter()
+        .filter_map(|m| {
+            let offset = m.offset_ns.or(facts.final_offset_ns)?;
+            Some(m.received_ns - (m.message.header.send_time_ns - offset))
+        })
+        .collect();
+    let report = NetworkedReport {
+        experiment,
+        measured_delay_ms: estimate.map(|e| e.delay_ms),
+        delay_estimate: estimate,
+        set_delay_ms: facts.set_delay_ms,
+        parameters_received: end.parameters,
+        loop_timing: facts.timing,
+        missing_ticks,
+        link: facts.link,
+        downlink_latency: LatencyReport::of_samples(&mut downlink),
+        measurements: (
+            rec.measurements.len() as u64,
+            facts.measurements_overwritten,
+        ),
+        sessions: end.sessions,
+        clouds: rec.clouds,
+        safety: end.safety,
+        device_forces: end.force_record,
+        device: facts.device.clone(),
+        wall_seconds: facts.wall_seconds,
+        telerobot: None,
+        shim: None,
+    };
+    (series, report)
+}
+
+/// The series, one entry per tick; ticks the loop skipped repeat the previous one (counted).
+fn series(facts: &RunFacts, rec: &Recording, frame: SurfaceFrame) -> (Series, u64) {
+    // Up to the last tick recorded (the recording stops after an hour).
+    let n = rec.ticks.last().map_or(0, |t| t.index as usize + 1);
+    let mut s = Series::with_capacity(n, frame.tangent2, frame.normal, facts.period_ns);
+    let mut records = rec.ticks.iter().peekable();
+    let mut previous = None;
+    let mut missing = 0;
+    for k in 0..n as u64 {
+        let record = match records.next_if(|r| r.index == k) {
+            Some(r) => Some(*r),
+            None => {
+                missing += 1;
+                previous
+            }
+        };
+        previous = record;
+        let r = record.unwrap_or_default();
+        let out = OperatorOutput {
+            force_n: r.force_n,
+            command: Command {
+                header: Header::default(),
+                position_m: r.position_m,
+                velocity_m_per_s: [0.0; 3],
+            },
+            in_contact: r.in_contact,
+            rendering: r.rendering,
+        };
+        s.push_operator(r.position_m, &out, &out);
+    }
+    // The telerobot's stability by command tick (the first measurement executing command k; ticks
+    // without one keep the previous state), so that "time to stable" counts from the first
+    // contact on the same time axis.
+    let mut stable = vec![None; n];
+    for m in &rec.measurements {
+        let msg = &m.message;
+        let command_ns = msg.command_sample_time_ns - facts.start_ns;
+        s.push_telerobot(
+            command_ns,
+            msg.force_on_tool_n,
+            msg.in_contact,
+            msg.estimator_stable,
+            msg.reconstruction.map(|[y2, e2]| (y2, e2)),
+            [(0.0, 0.0); 2],
+            [None; 2],
+        );
+        if let Some(slot) = usize::try_from(command_ns / facts.period_ns)
+            .ok()
+            .filter(|_| command_ns >= 0)
+            .and_then(|k| stable.get_mut(k))
+        {
+            slot.get_or_insert(msg.estimator_stable);
+        }
+    }
+    let mut last = false;
+    s.stable = stable
+        .into_iter()
+        .map(|st| {
+            last = st.unwrap_or(last);
+            last
+        })
+        .collect();
+    (s, missing)
+}
+
+/// The cross-correlation of the rendered and the measured tangential force, over the ticks where
+/// a model is rendered.
+fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<DelayEstimate> {
+    let rendered: Vec<f64> = s.rendered.iter().map(|f| vec3::dot(*f, s.axis)).collect();
+    let period = facts.period_ns as f64;
+    let measured: Vec<(f64, f64)> = rec
+        .measurements
+        .iter()
+        .filter_map(|m| {
+            let offset = m.offset_ns.or(facts.final_offset_ns)?;
+            let t = m.message.header.sample_time_ns - offset - facts.start_ns;
+            Some((
+                t as f64 / period,
+                vec3::dot(m.message.force_on_tool_n, s.axis),
+            ))
+        })
+        .collect();
+    delay::estimate(
+        &rendered,
+        &s.rendering,
+        &measured,
+        period * 1e-9,
+        LagRange::default(),
+    )
+}
+
+/// The stdout table: `mmt experiment`'s, then the networked figures.
+pub fn table(r: &NetworkedReport) -> String {
+    let mut out = mmt::report::experiment::table(&r.experiment);
+    let _ = write_extras(&mut out, r);
+    out
+}
+
+fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
+    let opt =
+        |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
+    // p50 / p99 / max of a distribution in µs, or in ms.
+    let us = |q: &Quantiles| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
+    let ms = |q: &Quantiles| {
+        format!(
+            "{:.2} / {:.2} / {:.2} ms",
+            q.p50_us / 1e3,
+            q.p99_us / 1e3,
+            q.max_us / 1e3
+        )
+    };
+    let count = |t: &TimingReport| format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks);
+    // Without the scene's truth, the parameters as received.
+    if let Some(p) = r
+        .parameters_received
+        .filter(|_| r.experiment.parameters.is_empty())
+    {
+        for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
+            if let Some(set) = set {
+                writeln!(out, "parameters received, {axes}: {:.4?}", set.terms)?;
+            }
+        }
+    }
+    let mut rows: Vec<(String, String)> = Vec::new();
+    let mut row = |name: &str, value: String| rows.push((name.to_owned(), value));
+    row(
+        "measured_delay_ms (rendered leads measured)",
+        opt(r.measured_delay_ms, "ms"),
+    );
+    if let Some(d) = r.set_delay_ms {
+        row("  set one-way delay", format!("{d:.2} ms"));
+    }
+    if let Some(e) = &r.delay_estimate {
+        row("  peak correlation", format!("{:.4}", e.peak_correlation));
+    }
+    let t = &r.loop_timing;
+    row("haptic loop period p50 / p99 / max", us(&t.period));
+    row("  lateness p50 / p99 / max", us(&t.lateness));
+    row("  work p50 / p99 / max", us(&t.work));
+    row("  ticks, overruns, skipped", count(t));
+    let l = &r.link;
+    row(
+        "datagrams sent / received",
+        format!("{} / {}", l.sent, l.received),
+    );
+    row(
+        "  late / lost / duplicate / garbage",
+        format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
+    );
+    row(
+        "RTT smoothed / min",
+        format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
+    );
+    row(
+        "clock offset (telerobot − operator)",
+        opt(l.clock_offset_ms, "ms"),
+    );
+    // One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
+    let mut latency = |name: &str, l: &LatencyReport| {
+        let q = l.quantiles();
+        row(name, ms(&q));
+        if let Some(d) = r.set_delay_ms {
+            let beyond = |v: f64| v - d * 1e3;
+            let extra = Quantiles {
+                p50_us: beyond(q.p50_us),
+                p99_us: beyond(q.p99_us),
+                max_us: beyond(q.max_us),
+            };
+            row("  beyond the set delay p50 / p99 / max", us(&extra));
+        }
+    };
+    if let Some(t) = &r.telerobot {
+        latency(
+            "uplink: command sample → telerobot receipt",
+            &t.command_latency,
+        );
+    }
+    latency(
+        "downlink: measurement send → operator receipt",
+        &r.downlink_latency,
+    );
+    row("sessions", r.sessions.to_string());
+    if let Some(t) = &r.telerobot {
+        row(
+            "telerobot loop period p50 / p99 / max",
+            us(&t.timing.period),
+        );
+        row("  ticks, overruns, skipped", count(&t.timing));
+    }
+    if let Some(s) = &r.shim {
+        row(
+            "netem release lateness p50 / p99 / max",
+            us(&s.lateness.quantiles()),
+        );
+    }
+    let s = &r.safety;
+    row(
+        "safety episodes: watchdog / rate / max / workspace",
+        format!(
+            "{} / {} / {} / {}",
+            s.watchdog_fading.episodes,
+            s.rate_limited.episodes,
+            s.saturated.episodes,
+            s.workspace.episodes
+        ),
+    );
+    writeln!(out, "network")?;
+    for (name, value) in rows {
+        writeln!(out, "{name:<46} {value:>14}")?;
+    }
+    Ok(())
+}
+
+/// The files of `--out DIR`: `mmt experiment`'s series and plots, and `report.json` with every
+/// figure of [`NetworkedReport`].
+pub fn files(
+    r: &NetworkedReport,
+    s: &Series,
+) -> Result<Vec<(String, Vec<u8>)>, mmt::report::plot::PlotError> {
+    let mut files = mmt::report::experiment::files(&r.experiment, s)?;
+    let json = serde_json::to_string_pretty(r)
+        .map_err(|e| mmt::report::plot::PlotError::Draw(e.to_string()))?;
+    for (name, bytes) in &mut files {
+        if name == "report.json" {
+            *bytes = json.clone().into_bytes();
+        }
+    }
+    Ok(files)
+}

@@ -1,0 +1,139 @@
+//! The camera thread: the scene's simulated depth camera at its frame rate, off the real-time
+//! thread (`DESIGN.md` §2: nothing in the 1 kHz loop allocates).
+//!
+//! ```text
+//!  1 kHz loop ──CameraPose (latest value)──▶ camera thread: Camera::frame → CloudIndex::build
+//!  1 kHz loop ◀──(frame id, Arc<CloudIndex>) (latest value)──┘      └──▶ send_cloud (operator)
+//! ```
+//!
+//! The thread keeps the last few indices alive itself, so the loop never drops the last reference
+//! to one (freeing a kd-tree there would be a deallocation on the real-time thread).
+
+use std::collections::VecDeque;
+use std::io;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use mmt::cloud::CloudFrame;
+use mmt::contact::CloudIndex;
+use mmt::sim::camera::Camera;
+use mmt::sim::world::World;
+use protocol::telerobot_to_operator as wire;
+use rt::Shutdown;
+use transport::Mailbox;
+
+use crate::net::TelerobotLink;
+
+/// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
+const POLL: Duration = Duration::from_millis(2);
+/// Indices the camera thread keeps alive (the loop holds at most the newest one it took).
+const KEEP: usize = 4;
+
+/// Where the tool and the object are, published by the loop every tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CameraPose {
+    /// The loop's tick time [ns, `monotonic_ns`]: the frame's capture time.
+    pub now_ns: i64,
+    /// Tool position \[m\] (the camera window is centred on it).
+    pub tool_m: [f64; 3],
+    /// How far the object slid along the tangents \[m\] (the cloud moves with it).
+    pub object_offset_m: [f64; 2],
+}
+
+/// The hand-off between the loop and the camera thread (both latest-value slots).
+#[derive(Debug)]
+pub struct CameraFeed {
+    /// Loop → camera.
+    pub pose: Mailbox<CameraPose>,
+    /// Camera → loop: the newest frame's id and index.
+    pub index: Mailbox<(u64, Arc<CloudIndex>)>,
+    frames: AtomicU64,
+    rejected: AtomicU64,
+}
+
+impl Default for CameraFeed {
+    fn default() -> Self {
+        CameraFeed {
+            pose: Mailbox::latest(),
+            index: Mailbox::latest(),
+            frames: AtomicU64::new(0),
+            rejected: AtomicU64::new(0),
+        }
+    }
+}
+
+impl CameraFeed {
+    /// Frames indexed and sent, and frames the camera or the index refused.
+    pub fn counts(&self) -> (u64, u64) {
+        (self.frames.load(Relaxed), self.rejected.load(Relaxed))
+    }
+}
+
+/// Starts the camera thread: `camera` (the scene's, seeded) and `geometry`, a copy of the scene's
+/// world the camera reads the surface frame from (never stepped). It stops when `shutdown` is
+/// triggered.
+pub fn spawn(
+    camera: Camera,
+    geometry: World,
+    feed: Arc<CameraFeed>,
+    link: TelerobotLink,
+    shutdown: Shutdown,
+) -> io::Result<JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("camera".to_owned())
+        .spawn(move || run(camera, &geometry, &feed, &link, &shutdown))
+}
+
+fn run(
+    mut camera: Camera,
+    geometry: &World,
+    feed: &CameraFeed,
+    link: &TelerobotLink,
+    shutdown: &Shutdown,
+) {
+    let mut kept: VecDeque<Arc<CloudIndex>> = VecDeque::with_capacity(KEEP + 1);
+    let mut frame_id = 0u64;
+    let mut pose = None;
+    while !shutdown.wait_timeout(POLL) {
+        if let Some(p) = feed.pose.take() {
+            pose = Some(p);
+        }
+        let Some(p) = pose else { continue };
+        match camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m) {
+            Ok(Some(frame)) => match CloudIndex::build(&frame) {
+                Ok(index) => {
+                    frame_id += 1;
+                    let index = Arc::new(index);
+                    kept.push_back(Arc::clone(&index));
+                    if kept.len() > KEEP {
+                        kept.pop_front();
+                    }
+                    feed.index.push((frame_id, index));
+                    link.send_cloud(Box::new(to_wire(frame_id, frame)));
+                    feed.frames.fetch_add(1, Relaxed);
+                }
+                Err(_) => {
+                    feed.rejected.fetch_add(1, Relaxed);
+                }
+            },
+            Ok(None) => {}
+            Err(_) => {
+                feed.rejected.fetch_add(1, Relaxed);
+            }
+        }
+    }
+}
+
+/// The wire form of a frame.
+fn to_wire(frame_id: u64, frame: CloudFrame) -> wire::CloudFrame {
+    let pose = *frame.sensor_pose();
+    wire::CloudFrame {
+        frame_id,
+        timestamp_ns: frame.timestamp_ns(),
+        sensor_position_m: pose.translation_m,
+        sensor_orientation_xyzw: pose.quaternion_xyzw(),
+        points: frame.into_points(),
+    }
+}

@@ -1,0 +1,210 @@
+//! The telerobot's 1 kHz loop: steps `mmt`'s telerobot node exactly as the in-process harness
+//! does (`mmt::experiment`), against the robot bridge, on its own OS thread.
+//!
+//! Per tick (at the tick's nominal time `now`):
+//! 1. every command queued since the last tick goes to the node (its playout buffer orders them);
+//!    a command of a newer session swaps in a fresh node (new operator, new clock, new model);
+//! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread);
+//! 3. the node says where the robot goes (the command whose turn it is, or hold still when the
+//!    newest command is older than 50 ms), the bridge moves and measures;
+//! 4. the node steps with the measurement; its messages go to the network task's outbox while an
+//!    operator is connected;
+//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread.
+//!
+//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots and datagrams move
+//! through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old ones dropped, by
+//! the housekeeping thread ([`Spares`]).
+
+use std::sync::Arc;
+
+use mmt::node::NodeSettings;
+use mmt::node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
+use protocol::telerobot_to_operator::Message;
+use rt::{Periodic, Shutdown, Tick};
+use transport::Mailbox;
+
+use crate::bridge::RobotBridge;
+use crate::camera::{CameraFeed, CameraPose};
+use crate::net::{Datagram, TelerobotLink};
+
+/// Ticks between two [`LoopSnapshot`]s.
+const SNAPSHOT_EVERY: u64 = 10;
+
+/// What the loop looks like, published every [`SNAPSHOT_EVERY`] ticks.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LoopSnapshot {
+    /// Tick number.
+    pub tick: u64,
+    /// The tick's time [ns, `monotonic_ns`].
+    pub now_ns: i64,
+    /// The session whose commands the node executes (0 before the first command).
+    pub session: u64,
+    /// The robot holds still (no command fresher than the timeout).
+    pub holding: bool,
+    /// Tool position \[m\].
+    pub tool_m: [f64; 3],
+    /// The node's counters (this session's node).
+    pub node: TelerobotStats,
+    /// The node's estimators are all confident.
+    pub stable: bool,
+    /// Nodes built on the loop thread because no spare was ready (should stay 0).
+    pub inline_node_builds: u64,
+}
+
+/// Fresh nodes for new sessions, and old nodes to drop, exchanged with the housekeeping thread.
+pub struct Spares {
+    /// A node built off the loop thread at the robot's current position.
+    pub spare: Mailbox<Box<TelerobotNode>>,
+    /// Nodes the loop replaced, to be dropped off the loop thread.
+    pub retired: Mailbox<Box<TelerobotNode>>,
+}
+
+impl Default for Spares {
+    fn default() -> Self {
+        Spares {
+            spare: Mailbox::latest(),
+            retired: Mailbox::new(4),
+        }
+    }
+}
+
+/// What the loop needs.
+pub(crate) struct ControlLoop {
+    pub(crate) node: Box<TelerobotNode>,
+    pub(crate) settings: NodeSettings,
+    pub(crate) bridge: Box<dyn RobotBridge>,
+    pub(crate) link: TelerobotLink,
+    pub(crate) camera: Arc<CameraFeed>,
+    pub(crate) spares: Arc<Spares>,
+    pub(crate) snapshots: Arc<Mailbox<LoopSnapshot>>,
+    /// Command receipt − command sample time \[ns\] (one host: the uplink's one-way latency), to
+    /// the housekeeping thread.
+    pub(crate) command_latency: Arc<Mailbox<i64>>,
+    pub(crate) shutdown: Shutdown,
+}
+
+/// What the loop hands back when it stops.
+pub(crate) struct LoopEnd {
+    pub(crate) node: Box<TelerobotNode>,
+    pub(crate) last: LoopSnapshot,
+}
+
+impl ControlLoop {
+    /// Runs until the shutdown signal.
+    pub(crate) fn run(mut self, mut periodic: Periodic) -> LoopEnd {
+        let mut state = State::default();
+        loop {
+            let tick = periodic.wait();
+            if self.shutdown.is_triggered() {
+                break;
+            }
+            self.tick(tick, &mut state);
+        }
+        LoopEnd {
+            last: state.snapshot(&self.node),
+            node: self.node,
+        }
+    }
+
+    fn tick(&mut self, tick: Tick, state: &mut State) {
+        let now = tick.deadline_ns;
+        while let Some(c) = self.link.next_command() {
+            if c.session < state.session {
+                continue; // left over from an earlier session
+            }
+            if c.session > state.session {
+                if state.session != 0 {
+                    self.fresh_node(state);
+                }
+                state.session = c.session;
+            }
+            let header = c.message.header;
+            self.command_latency
+                .push(c.received_ns - header.sample_time_ns);
+            self.node.on_command(CommandSample {
+                sample_time_ns: header.sample_time_ns,
+                position_m: c.message.position_m,
+                velocity_m_per_s: c.message.velocity_m_per_s,
+                received_ns: c.received_ns,
+            });
+        }
+        if let Some((frame_id, index)) = self.camera.index.take() {
+            self.node.set_cloud(index, frame_id);
+        }
+        let target = self.node.target(now, self.bridge.tool_m());
+        let sample = self.bridge.step(&target);
+        self.camera.pose.push(CameraPose {
+            now_ns: now,
+            tool_m: sample.tool_m,
+            object_offset_m: sample.object_offset_m,
+        });
+        let connected = self.link.status().connected();
+        let messages = self
+            .node
+            .step(now, target.command_sample_time_ns, &sample.measured, None);
+        if connected {
+            for m in messages {
+                let datagram = match m {
+                    Message::Parameters(p) => Datagram::Parameters(*p),
+                    Message::Contact(c) => Datagram::Contact(*c),
+                    Message::StateSync(s) => Datagram::StateSync(*s),
+                    Message::Measurement(m) => Datagram::Measurement(*m),
+                    // Clouds go from the camera thread; the node gets no frame here.
+                    _ => continue,
+                };
+                self.link.send(datagram);
+            }
+        }
+        state.tick = tick.index;
+        state.now_ns = now;
+        state.holding = target.holding;
+        state.tool_m = sample.tool_m;
+        if tick.index.is_multiple_of(SNAPSHOT_EVERY) {
+            self.snapshots.push(state.snapshot(&self.node));
+        }
+    }
+
+    /// Swaps in the spare node (built off this thread); the old one goes back to be dropped.
+    fn fresh_node(&mut self, state: &mut State) {
+        let fresh = match self.spares.spare.take() {
+            Some(node) => node,
+            None => {
+                // No spare ready (sessions changing faster than the housekeeping thread builds
+                // them): build one here, once per session change, and count it.
+                state.inline_node_builds += 1;
+                match TelerobotNode::new(self.settings.clone(), self.bridge.tool_m()) {
+                    Ok(node) => Box::new(node),
+                    Err(_) => return, // the settings built the first node: cannot happen
+                }
+            }
+        };
+        let old = std::mem::replace(&mut self.node, fresh);
+        self.spares.retired.push(old);
+    }
+}
+
+/// The loop's own bookkeeping.
+#[derive(Debug, Default)]
+struct State {
+    tick: u64,
+    now_ns: i64,
+    session: u64,
+    holding: bool,
+    tool_m: [f64; 3],
+    inline_node_builds: u64,
+}
+
+impl State {
+    fn snapshot(&self, node: &TelerobotNode) -> LoopSnapshot {
+        LoopSnapshot {
+            tick: self.tick,
+            now_ns: self.now_ns,
+            session: self.session,
+            holding: self.holding,
+            tool_m: self.tool_m,
+            node: node.stats(),
+            stable: node.is_stable(),
+            inline_node_builds: self.inline_node_builds,
+        }
+    }
+}

@@ -1,0 +1,505 @@
+//! The telerobot daemon: the network runtime, the 1 kHz loop, the camera thread and the
+//! housekeeping thread, started together ([`Telerobot::start`]) and stopped together
+//! ([`Telerobot::stop`]); [`run`] is both around a shutdown signal (what `telerobot run` calls).
+//!
+//! Threads:
+//! - `telerobot-net`: a one-worker tokio runtime serving QUIC ([`crate::net::serve`]);
+//! - `telerobot-loop`: the real-time loop ([`crate::control`]), absolute deadlines plus a short
+//!   spin ([`rt::Periodic`]);
+//! - `camera`: the simulated camera and its kd-tree ([`crate::camera`]);
+//! - `housekeeping`: everything the loop must not do — builds a spare node for the next session
+//!   (at the robot's current position), drops retired ones, keeps the latest loop snapshot for
+//!   [`Telerobot::snapshot`], and logs each session's end with its figures.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use mmt::experiment::{ParameterReport, parameter_report};
+use mmt::node::telerobot::TelerobotNode;
+use mmt::node::{NodeSettings, structure_to_wire};
+use mmt::scene::{CloudKind, Scene};
+use mmt::sim::camera::Camera;
+use mmt::sim::world::World;
+use protocol::telerobot_to_operator::SceneSummary;
+use rt::{LatencyReport, LinkReport, Periodic, PeriodicConfig, Shutdown, TimingReport};
+use rustls_pki_types::CertificateDer;
+use serde::Serialize;
+use transport::clock::monotonic_ns;
+use transport::{Identity, LinkTuning, Mailbox};
+
+use crate::bridge::SimBridge;
+use crate::camera::{self, CameraFeed};
+use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
+use crate::net::{self, NetConfig, TelerobotLink};
+
+/// How often the housekeeping thread wakes.
+const HOUSEKEEPING: Duration = Duration::from_millis(20);
+/// Command latencies queued for the housekeeping thread: 8 s at 1 kHz.
+const LATENCY_QUEUE: usize = 8192;
+/// Command latencies kept for the summary: one hour at 1 kHz (29 MB).
+const MAX_LATENCIES: usize = 3_600_000;
+
+/// Everything `telerobot run` needs, validated.
+#[derive(Clone, Debug)]
+pub struct RunConfig {
+    /// Where to listen.
+    pub listen: SocketAddr,
+    /// The telerobot's certificate and key.
+    pub identity: Identity,
+    /// Trusted operator certificates, with the file each came from.
+    pub trusted_operators: Vec<(PathBuf, CertificateDer<'static>)>,
+    /// quinn settings.
+    pub tuning: LinkTuning,
+    /// The scene the simulated bridge runs (validated when it was parsed).
+    pub scene: Scene,
+    /// Seed of the simulated sensors' and camera's noise.
+    pub seed: u64,
+    /// Where the tool starts [m]: 1 cm above the scene's surface point by default.
+    pub start_m: [f64; 3],
+    /// The loop's schedule (period from the scene's control rate, spin window).
+    pub periodic: PeriodicConfig,
+    /// `SCHED_FIFO` priority of the loop thread, if wanted (needs `CAP_SYS_NICE`).
+    pub realtime_priority: Option<u8>,
+}
+
+impl RunConfig {
+    /// The `Welcome`'s scene summary ([`scene_summary`]).
+    pub fn scene_summary(&self) -> SceneSummary {
+        scene_summary(&self.scene)
+    }
+
+    /// The server's configuration.
+    pub fn net_config(&self) -> NetConfig {
+        let mut config = NetConfig::new(
+            self.listen,
+            self.identity.clone(),
+            self.trusted_operators
+                .iter()
+                .map(|(_, c)| c.clone())
+                .collect(),
+            self.scene_summary(),
+        );
+        config.tuning = self.tuning.clone();
+        config
+    }
+
+    /// The tool's default start: 1 cm above the surface point, along the normal.
+    pub fn default_start(scene: &Scene) -> [f64; 3] {
+        let s = &scene.surface;
+        std::array::from_fn(|i| s.point_m[i] + 0.01 * s.normal[i])
+    }
+}
+
+/// The `Welcome`'s summary of `scene`: model structures, rates and what the model leaves out.
+pub fn scene_summary(s: &Scene) -> SceneSummary {
+    SceneSummary {
+        name: s.name.clone(),
+        normal: structure_to_wire(s.model.normal_structure()),
+        tangential: structure_to_wire(s.model.tangential_structure()),
+        control_rate_hz: s.rates.control_hz,
+        cloud_rate_hz: (s.cloud.source != CloudKind::None).then_some(s.cloud.rate_hz),
+        left_out: s.left_out(),
+    }
+}
+
+/// Why the daemon could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    /// The loop settings.
+    #[error(transparent)]
+    Loop(#[from] rt::PeriodicError),
+    /// The node could not be built from the scene.
+    #[error("telerobot node: {0}")]
+    Node(#[from] mmt::node::telerobot::NodeError),
+    /// The simulated world could not be built from the scene.
+    #[error("simulated world: {0}")]
+    Sim(#[from] mmt::sim::SimError),
+    /// The server could not start.
+    #[error(transparent)]
+    Net(#[from] net::NetError),
+    /// A runtime, a socket pair or a thread could not be created.
+    #[error("{what}: {source}")]
+    Io {
+        /// What was being created.
+        what: &'static str,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+fn io(what: &'static str) -> impl FnOnce(std::io::Error) -> DaemonError {
+    move |source| DaemonError::Io { what, source }
+}
+
+/// What the daemon did, for its log and for the demo's report.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// Scene name.
+    pub scene: String,
+    /// Loop timing.
+    pub timing: TimingReport,
+    /// Operator sessions accepted.
+    pub sessions: u64,
+    /// Operators refused (busy, version or bad first message).
+    pub refusals: u64,
+    /// The last session's node: its counters and whether its estimators were confident.
+    pub last: SnapshotReport,
+    /// Command receipt − sample time [µs]: the uplink's one-way latency when both daemons share
+    /// one clock (one host); offset by the clock difference otherwise.
+    pub command_latency: LatencyReport,
+    /// Camera frames indexed and sent, and refused.
+    pub camera_frames: (u64, u64),
+    /// Commands lost to a full command queue.
+    pub commands_overwritten: u64,
+    /// Datagrams lost to a full outbox.
+    pub outbox_overwritten: u64,
+    /// Link counters.
+    pub link: LinkReport,
+    /// The last confirmed parameters against the scene's truth (the simulated bridge's).
+    pub parameters: Vec<ParameterReport>,
+}
+
+/// [`LoopSnapshot`] for reports.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct SnapshotReport {
+    /// Ticks run.
+    pub tick: u64,
+    /// Session served.
+    pub session: u64,
+    /// Node counters.
+    pub node: mmt::node::telerobot::TelerobotStats,
+    /// Estimators confident.
+    pub stable: bool,
+    /// Nodes built on the loop thread (no spare ready).
+    pub inline_node_builds: u64,
+}
+
+/// A running telerobot daemon.
+pub struct Telerobot {
+    runtime: tokio::runtime::Runtime,
+    server: tokio::task::JoinHandle<()>,
+    net_stop: Shutdown,
+    stop: Shutdown,
+    control: Option<JoinHandle<LoopEnd>>,
+    camera: Option<JoinHandle<()>>,
+    housekeeping: Option<JoinHandle<Vec<i64>>>,
+    shared: Arc<Housekeeping>,
+    addr: SocketAddr,
+    link: TelerobotLink,
+    feed: Arc<CameraFeed>,
+    timing: Arc<rt::LoopTiming>,
+    scene: Scene,
+    pins: Arc<transport::OperatorPins>,
+}
+
+/// What the housekeeping thread shares.
+struct Housekeeping {
+    snapshot: Mutex<LoopSnapshot>,
+}
+
+impl Telerobot {
+    /// Binds the server and starts every thread. Returns once the server listens.
+    pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
+        let settings = NodeSettings::from_scene(&config.scene);
+        let start = config.start_m;
+        let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
+        let bridge = Box::new(SimBridge::new(&config.scene, start, config.seed)?);
+        let periodic_config = PeriodicConfig {
+            period_ns: settings.period_ns,
+            ..config.periodic
+        };
+        periodic_config.validate()?;
+        let runtime = rt::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
+        let (link, net_io) =
+            net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
+        let server = {
+            let _entered = runtime.enter();
+            net::bind(config.net_config())?
+        };
+        let addr = server
+            .local_addr()
+            .map_err(io("the server's local address"))?;
+        let pins = server.pins();
+        let net_stop = Shutdown::new();
+        let server = {
+            let stop = net_stop.clone();
+            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
+        };
+        for (path, _) in &config.trusted_operators {
+            tracing::info!(file = %path.display(), "trusting operator certificate");
+        }
+
+        let stop = Shutdown::new();
+        let feed = Arc::new(CameraFeed::default());
+        let camera = if config.scene.cloud.source == CloudKind::None {
+            None
+        } else {
+            let geometry = World::new(&config.scene, start, config.seed)?;
+            Some(
+                camera::spawn(
+                    Camera::new(&config.scene, config.seed),
+                    geometry,
+                    Arc::clone(&feed),
+                    link.clone(),
+                    stop.clone(),
+                )
+                .map_err(io("the camera thread"))?,
+            )
+        };
+        let spares = Arc::new(Spares::default());
+        let snapshots = Arc::new(Mailbox::latest());
+        let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
+        // Tick 0 a little ahead, so that the first deadline is not already late.
+        let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
+        let timing = periodic.timing();
+        let control = ControlLoop {
+            node,
+            settings: settings.clone(),
+            bridge,
+            link: link.clone(),
+            camera: Arc::clone(&feed),
+            spares: Arc::clone(&spares),
+            snapshots: Arc::clone(&snapshots),
+            command_latency: Arc::clone(&command_latency),
+            shutdown: stop.clone(),
+        };
+        let control = rt::spawn("telerobot-loop", config.realtime_priority, move || {
+            control.run(periodic)
+        })
+        .map_err(io("the loop thread"))?;
+        let shared = Arc::new(Housekeeping {
+            snapshot: Mutex::new(LoopSnapshot {
+                tool_m: start,
+                ..LoopSnapshot::default()
+            }),
+        });
+        let housekeeping = {
+            let keeper = Keeper {
+                settings,
+                spares,
+                snapshots,
+                shared: Arc::clone(&shared),
+                link: link.clone(),
+                timing: Arc::clone(&timing),
+                spare_at: None,
+                command_latency,
+                latencies: Vec::new(),
+            };
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name("housekeeping".to_owned())
+                .spawn(move || keeper.run(&stop))
+                .map_err(io("the housekeeping thread"))?
+        };
+        tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+            period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
+            "telerobot running (simulated bridge)");
+        Ok(Telerobot {
+            runtime,
+            server,
+            net_stop,
+            stop,
+            control: Some(control),
+            camera,
+            housekeeping: Some(housekeeping),
+            shared,
+            addr,
+            link,
+            feed,
+            timing,
+            scene: config.scene,
+            pins,
+        })
+    }
+
+    /// The address the server listens on.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The loop as of its last snapshot (at most ~30 ms old).
+    pub fn snapshot(&self) -> LoopSnapshot {
+        *self
+            .shared
+            .snapshot
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The network side: link counters, session status.
+    pub fn link(&self) -> &TelerobotLink {
+        &self.link
+    }
+
+    /// Operator certificates the TLS handshake refused since start.
+    pub fn untrusted_refusals(&self) -> u64 {
+        self.pins.rejections()
+    }
+
+    /// Stops everything (operators are told the telerobot shuts down) and returns the summary.
+    pub fn stop(mut self) -> Summary {
+        self.stop.trigger();
+        let end = self.control.take().and_then(|h| h.join().ok());
+        if let Some(camera) = self.camera.take() {
+            let _ = camera.join();
+        }
+        let mut latencies = self
+            .housekeeping
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        self.net_stop.trigger();
+        let server = &mut self.server;
+        let _ = self
+            .runtime
+            .block_on(async { tokio::time::timeout(Duration::from_secs(3), server).await });
+        let last = end.as_ref().map_or_else(|| self.snapshot(), |e| e.last);
+        let parameters = end.as_ref().map_or_else(Vec::new, |e| {
+            let latest =
+                |est: Option<&mmt::estimator::Estimator>| est.and_then(|e| e.latest()).copied();
+            let (n, t) = (
+                latest(e.node.normal_estimator()),
+                latest(e.node.tangential_estimator()),
+            );
+            parameter_report(&self.scene, [n.as_ref(), t.as_ref()])
+        });
+        let status = self.link.status();
+        let summary = Summary {
+            scene: self.scene.name.clone(),
+            timing: self.timing.report(),
+            sessions: status.session(),
+            refusals: status.refused_busy() + status.refused_other(),
+            last: SnapshotReport {
+                tick: last.tick,
+                session: last.session,
+                node: last.node,
+                stable: last.stable,
+                inline_node_builds: last.inline_node_builds,
+            },
+            command_latency: LatencyReport::of_samples(&mut latencies),
+            camera_frames: self.feed.counts(),
+            commands_overwritten: self.link.commands_overwritten(),
+            outbox_overwritten: self.link.outbox_overwritten(),
+            link: self.link.stats().into(),
+            parameters,
+        };
+        let t = &summary.timing;
+        tracing::info!(
+            ticks = t.ticks,
+            period_p50_us = t.period.p50_us,
+            period_p99_us = t.period.p99_us,
+            period_max_us = t.period.max_us,
+            overruns = t.overruns,
+            skipped = t.skipped_ticks,
+            sessions = summary.sessions,
+            "telerobot stopped"
+        );
+        summary
+    }
+}
+
+impl Drop for Telerobot {
+    /// A daemon dropped without [`Telerobot::stop`] still stops its threads (without waiting).
+    fn drop(&mut self) {
+        self.stop.trigger();
+        self.net_stop.trigger();
+    }
+}
+
+/// Runs the daemon until `shutdown` is triggered (Ctrl-C in `telerobot run`).
+pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Summary, DaemonError> {
+    let telerobot = Telerobot::start(config)?;
+    while !shutdown.wait_timeout(Duration::from_secs(3600)) {}
+    Ok(telerobot.stop())
+}
+
+/// The housekeeping thread's state.
+struct Keeper {
+    settings: NodeSettings,
+    spares: Arc<Spares>,
+    snapshots: Arc<Mailbox<LoopSnapshot>>,
+    shared: Arc<Housekeeping>,
+    link: TelerobotLink,
+    timing: Arc<rt::LoopTiming>,
+    /// Where the waiting spare was built.
+    spare_at: Option<[f64; 3]>,
+    command_latency: Arc<Mailbox<i64>>,
+    latencies: Vec<i64>,
+}
+
+impl Keeper {
+    /// Runs until `stop`; returns the command latencies \[ns\].
+    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
+        let mut last = LoopSnapshot::default();
+        let mut connected = false;
+        while !stop.wait_timeout(HOUSEKEEPING) {
+            while self.spares.retired.take().is_some() {}
+            self.drain_latencies();
+            if let Some(s) = self.snapshots.take() {
+                *self
+                    .shared
+                    .snapshot
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) = s;
+                last = s;
+            }
+            let now_connected = self.link.status().connected();
+            if connected && !now_connected {
+                self.log_session_end(&last);
+            }
+            connected = now_connected;
+            self.keep_spare(&last, now_connected);
+        }
+        self.drain_latencies();
+        self.latencies
+    }
+
+    fn drain_latencies(&mut self) {
+        while let Some(lag) = self.command_latency.take() {
+            if self.latencies.len() < MAX_LATENCIES {
+                self.latencies.push(lag);
+            }
+        }
+    }
+
+    /// Keeps a spare node at the robot's position. While an operator is connected the robot
+    /// moves, and the spare waits for the session to end (it is rebuilt where the robot then
+    /// holds still).
+    fn keep_spare(&mut self, last: &LoopSnapshot, connected: bool) {
+        let moved = self.spare_at.is_none_or(|at| {
+            let d: f64 = (0..3).map(|i| (at[i] - last.tool_m[i]).powi(2)).sum();
+            d.sqrt() > 1e-4
+        });
+        let missing = self.spares.spare.is_empty();
+        if !(missing || (moved && !connected)) {
+            return;
+        }
+        match TelerobotNode::new(self.settings.clone(), last.tool_m) {
+            Ok(node) => {
+                self.spares.spare.push(Box::new(node));
+                self.spare_at = Some(last.tool_m);
+            }
+            Err(e) => tracing::error!("cannot build a spare telerobot node: {e}"),
+        }
+    }
+
+    fn log_session_end(&self, last: &LoopSnapshot) {
+        let t = self.timing.report();
+        let n = &last.node;
+        tracing::info!(
+            session = last.session,
+            ticks = n.ticks,
+            holding_ticks = n.holding_ticks,
+            commands = n.commands,
+            stale_commands = n.stale_commands,
+            contact_onsets = n.contact_onsets,
+            estimators_confident = last.stable,
+            loop_period_p99_us = t.period.p99_us,
+            loop_overruns = t.overruns,
+            "session ended; the robot holds still until the next operator"
+        );
+    }
+}

@@ -1,0 +1,429 @@
+//! End-to-end over loopback: the telerobot daemon and the operator app, started through the
+//! functions the binaries run, with the netem shim between them.
+//!
+//! One test binary; every test holds [`serial`] (they run spinning real-time loops and must not
+//! overlap on a 2-core machine). Bounds are generous: CI is a busy VM. The precise figures come
+//! from `operator demo` and the examples (README).
+
+#![allow(clippy::unwrap_used)]
+
+use std::time::{Duration, Instant};
+
+use netem::{Direction, Loss};
+use operator::app::{self, RunError};
+use operator::net::NetError;
+use protocol::PROTOCOL_VERSION;
+use protocol::handshake::HandshakeError;
+use protocol::operator_to_telerobot::{self as o2t, Command};
+use protocol::telerobot_to_operator::{self as t2o, Refusal, Welcome};
+use rt::Shutdown;
+use tests::*;
+use transport::Identity;
+use transport::clock::monotonic_ns;
+
+/// One delay case: 10 s of the exp-1 script through the shim; the cross-correlation finds the
+/// set delay.
+fn delay_is_reproduced(delay_ms: f64) {
+    let _serial = serial();
+    let (tr, shim, config) = through_shim(&Certs::new(), delay_ms, 10.0);
+    let outcome = spawn_operator(config).join().unwrap().unwrap();
+    let summary = tr.stop();
+    shim.shutdown().unwrap();
+    let r = &outcome.report;
+    let measured = r.measured_delay_ms.unwrap_or(f64::NAN);
+    assert!(
+        (measured - delay_ms).abs() <= 5.0,
+        "set {delay_ms} ms, measured {measured} ms ({:?})",
+        r.delay_estimate
+    );
+    // The model was rendered, and close to the measured force (the precise figure: the demo).
+    let error = r.experiment.rms_error_pct_after_stable.unwrap_or(f64::NAN);
+    assert!(error < 15.0, "RMS error after stable {error} %");
+    assert_eq!((r.sessions, summary.sessions), (1, 1));
+    assert!(r.link.received > 5000, "{:?}", r.link);
+    assert!(summary.last.node.commands > 5000, "{:?}", summary.last);
+}
+
+#[test]
+fn delay_is_reproduced_at_0_ms() {
+    delay_is_reproduced(0.0);
+}
+
+#[test]
+fn delay_is_reproduced_at_100_ms() {
+    delay_is_reproduced(100.0);
+}
+
+#[test]
+fn delay_is_reproduced_at_400_ms() {
+    delay_is_reproduced(400.0);
+}
+
+#[test]
+fn a_2_s_outage_heals_without_restart() {
+    let _serial = serial();
+    let (tr, shim, config) = through_shim(&Certs::new(), 100.0, 14.0);
+    let operator = spawn_operator(config);
+    wait_connected(&tr);
+    // 6 s in: the second contact episode of the script, with a model rendered.
+    std::thread::sleep(Duration::from_secs(6));
+    let normal = shim.config(Direction::Up);
+    let mut cut = normal.clone();
+    cut.loss = Loss::Random { probability: 1.0 };
+    let outage = Instant::now();
+    for d in Direction::ALL {
+        shim.set_config(d, cut.clone()).unwrap();
+    }
+    // The telerobot holds still once its newest command is 50 ms old.
+    std::thread::sleep(Duration::from_millis(400));
+    let held = tr.snapshot();
+    assert!(held.holding, "{held:?}");
+    while outage.elapsed() < Duration::from_millis(1900) {
+        let s = tr.snapshot();
+        assert!(s.holding, "{s:?}");
+        assert_eq!(s.tool_m, held.tool_m, "the robot moved during the outage");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_secs(2).saturating_sub(outage.elapsed()));
+    for d in Direction::ALL {
+        shim.set_config(d, normal.clone()).unwrap();
+    }
+    // Commands flow again: the robot follows the operator.
+    wait_for(Duration::from_secs(3), || {
+        (!tr.snapshot().holding).then_some(())
+    })
+    .unwrap();
+    let outcome = operator.join().unwrap().unwrap();
+    let summary = tr.stop();
+    let shim_stats = shim.shutdown().unwrap();
+    assert!(shim_stats.up.dropped_loss > 1500, "{shim_stats:?}");
+
+    // No reconnection was needed on either side.
+    let r = &outcome.report;
+    assert_eq!((r.sessions, summary.sessions), (1, 1));
+    // The outage in the operator's series: the longest run of commands without a measurement.
+    let s = &outcome.series;
+    let first = s.rendering.iter().position(|r| *r).unwrap();
+    let (mut start, mut len, mut run_start, mut run) = (0, 0, 0, 0);
+    for k in first..s.len() {
+        if s.measured[k].is_none() {
+            if run == 0 {
+                run_start = k;
+            }
+            run += 1;
+            if run > len {
+                (start, len) = (run_start, run);
+            }
+        } else {
+            run = 0;
+        }
+    }
+    assert!((1700..=2600).contains(&len), "outage of {len} ticks");
+    // The operator kept rendering from its local model all through it...
+    let window = start..start + len;
+    assert!(s.rendering[window.clone()].iter().all(|r| *r));
+    let in_contact: Vec<usize> = window.filter(|&k| s.contact_local[k]).collect();
+    assert!(
+        in_contact.len() > 1000,
+        "{} ticks in contact",
+        in_contact.len()
+    );
+    let felt = in_contact
+        .iter()
+        .filter(|&&k| norm(s.rendered[k]) > 0.1)
+        .count();
+    assert!(
+        felt * 10 >= in_contact.len() * 9,
+        "{felt} of {}",
+        in_contact.len()
+    );
+    // ... and measurements came back after it.
+    let after = s.measured[start + len..].iter().flatten().count();
+    assert!(after > 1500, "{after} measurements after the outage");
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+#[test]
+fn untrusted_and_wrong_certificates_are_refused_with_clear_errors() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let stranger = Identity::generate(&["stranger"]).unwrap();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+
+    // An operator certificate the telerobot was not told to trust.
+    let config = operator_config(
+        tr.local_addr(),
+        &stranger,
+        &certs.telerobot,
+        "mallory",
+        5.0,
+        0.0,
+    );
+    let e = app::run(config, Shutdown::new()).err().unwrap();
+    assert!(matches!(e, RunError::Net(NetError::NotTrusted)), "{e:?}");
+    assert_eq!(
+        e.to_string(),
+        "the telerobot refused our certificate: not in its trusted set"
+    );
+    assert!(tr.untrusted_refusals() >= 1);
+
+    // A telerobot that is not the one pinned.
+    let config = operator_config(
+        tr.local_addr(),
+        &certs.operator,
+        &stranger,
+        "alice",
+        5.0,
+        0.0,
+    );
+    let e = app::run(config, Shutdown::new()).err().unwrap();
+    assert!(
+        matches!(&e, RunError::Net(NetError::PinMismatch { pinned }) if pinned == "pinned.crt"),
+        "{e:?}"
+    );
+    assert!(
+        e.to_string()
+            .contains("does not match the pinned certificate pinned.crt"),
+        "{e}"
+    );
+    assert_eq!(tr.stop().sessions, 0);
+}
+
+#[test]
+fn a_second_operator_is_refused_while_one_is_connected() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let bob = Identity::generate(&["bob"]).unwrap();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator, &bob], 0.0);
+    let alice = spawn_operator(operator_config(
+        tr.local_addr(),
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        5.0,
+        0.0,
+    ));
+    wait_connected(&tr);
+    let config = operator_config(tr.local_addr(), &bob, &certs.telerobot, "bob", 2.0, 0.0);
+    let e = app::run(config, Shutdown::new()).err().unwrap();
+    assert!(
+        matches!(
+            &e,
+            RunError::Net(NetError::Handshake(HandshakeError::Refused(Refusal::Busy {
+                controlling_operator
+            }))) if controlling_operator == "alice"
+        ),
+        "{e:?}"
+    );
+    assert!(
+        e.to_string()
+            .contains("telerobot is busy: alice is in control"),
+        "{e}"
+    );
+    // Alice was not disturbed.
+    let outcome = alice.join().unwrap().unwrap();
+    assert_eq!(outcome.report.sessions, 1);
+    // Once she has left, bob is accepted, with a fresh node (built off the loop thread).
+    let config = operator_config(tr.local_addr(), &bob, &certs.telerobot, "bob", 3.0, 0.0);
+    let outcome = app::run(config, Shutdown::new()).unwrap();
+    assert!(
+        outcome.report.measurements.0 > 2000,
+        "{:?}",
+        outcome.report.measurements
+    );
+    let s = tr.snapshot();
+    assert_eq!((s.session, s.inline_node_builds), (2, 0), "{s:?}");
+    assert!(s.node.commands > 2000 && s.node.commands < 3500, "{s:?}");
+    let summary = tr.stop();
+    assert_eq!((summary.sessions, summary.refusals), (2, 1));
+}
+
+#[test]
+fn the_operator_reconnects_when_the_telerobot_comes_back() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    let addr = tr.local_addr();
+    let operator = spawn_operator(operator_config(
+        addr,
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        12.0,
+        0.0,
+    ));
+    wait_connected(&tr);
+    std::thread::sleep(Duration::from_secs(3));
+    let first = tr.stop();
+    assert_eq!(first.sessions, 1);
+    // The same telerobot again, on the same port (retried while the old socket is released).
+    let tr = wait_for(Duration::from_secs(5), || {
+        telerobot_on(&certs.telerobot, &[&certs.operator], addr)
+    })
+    .unwrap();
+    let reconnected = wait_for(Duration::from_secs(10), || {
+        tr.link().status().connected().then_some(())
+    });
+    assert!(reconnected.is_some(), "the operator did not come back");
+    let outcome = operator.join().unwrap().unwrap();
+    let second = tr.stop();
+    let r = &outcome.report;
+    // One haptic loop all along, a fresh node for the second session.
+    assert_eq!(r.sessions, 2);
+    assert!(r.loop_timing.ticks >= 11_900, "{:?}", r.loop_timing);
+    assert!(second.last.node.commands > 2000, "{:?}", second.last);
+    let after = outcome.series.measured[9_000..].iter().flatten().count();
+    assert!(after > 2000, "{after} measurements in the last 3 s");
+}
+
+#[test]
+fn a_version_mismatch_is_refused_naming_both_versions() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let newer = PROTOCOL_VERSION + 1;
+    let rt = runtime();
+
+    // A newer operator at the real telerobot.
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    let answer = rt.block_on(async {
+        let mut raw =
+            RawOperator::connect(tr.local_addr(), &certs.operator, &certs.telerobot).await;
+        raw.hello("future", newer).await
+    });
+    let t2o::Message::Refused(refused) = answer else {
+        panic!("{answer:?}")
+    };
+    assert_eq!(
+        refused.reason.to_string(),
+        format!(
+            "protocol version mismatch: telerobot speaks {PROTOCOL_VERSION}, operator speaks {newer}"
+        )
+    );
+    assert_eq!(tr.stop().sessions, 0);
+
+    // The real operator at a newer telerobot.
+    let welcome = Welcome {
+        version: newer,
+        scene: telerobot_summary(),
+    };
+    let raw = RawTelerobot::start(&rt, &certs.telerobot, &certs.operator, welcome, vec![]);
+    let config = operator_config(
+        raw.addr,
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        2.0,
+        0.0,
+    );
+    let e = app::run(config, Shutdown::new()).err().unwrap();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "protocol version mismatch: operator speaks {PROTOCOL_VERSION}, telerobot speaks {newer}"
+        )
+    );
+}
+
+/// The exp-1 scene's summary, as the daemon sends it.
+fn telerobot_summary() -> t2o::SceneSummary {
+    telerobot::daemon::scene_summary(&mmt::scene::Scene::exp1())
+}
+
+#[test]
+fn garbage_datagrams_to_either_port_are_counted_and_ignored() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let rt = runtime();
+
+    // To the telerobot: a hand-made operator in control sends garbage around valid commands;
+    // plain UDP junk hits the port as well.
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    udp_junk(tr.local_addr(), 20);
+    let garbage: Vec<Vec<u8>> = vec![
+        vec![0xde, 0xad, 0xbe, 0xef],
+        vec![1],
+        o2t::encode(&o2t::Message::Bye),
+        t2o::encode(&t2o::Message::Welcome(Welcome {
+            version: PROTOCOL_VERSION,
+            scene: telerobot_summary(),
+        })),
+    ];
+    let sent = garbage.len() as u64;
+    let raw = rt.block_on(async {
+        let mut raw =
+            RawOperator::connect(tr.local_addr(), &certs.operator, &certs.telerobot).await;
+        assert!(matches!(
+            raw.hello("raw", PROTOCOL_VERSION).await,
+            t2o::Message::Welcome(_)
+        ));
+        for g in &garbage {
+            raw.conn.send_datagram(g.clone().into()).unwrap();
+        }
+        for seq in 1..=300u64 {
+            let command = o2t::Message::Command(Command {
+                header: protocol::Header {
+                    seq,
+                    sample_time_ns: monotonic_ns(),
+                    send_time_ns: monotonic_ns(),
+                    ..protocol::Header::default()
+                },
+                position_m: [0.0, 0.0, 0.01],
+                velocity_m_per_s: [0.0; 3],
+            });
+            raw.conn
+                .send_datagram(o2t::encode(&command).into())
+                .unwrap();
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        raw
+    });
+    let counted = wait_for(Duration::from_secs(5), || {
+        (tr.link().stats().garbage == sent).then_some(())
+    });
+    assert!(counted.is_some(), "{:?}", tr.link().stats());
+    // The loop went on executing the valid commands.
+    let executed = wait_for(Duration::from_secs(5), || {
+        let s = tr.snapshot();
+        (s.node.commands >= 250).then_some(s)
+    });
+    assert!(executed.is_some(), "{:?}", tr.snapshot());
+    assert!(tr.link().status().connected());
+    drop(raw);
+    tr.stop();
+
+    // To the operator: a hand-made telerobot sends garbage; plain UDP junk hits its port too.
+    let welcome = Welcome {
+        version: PROTOCOL_VERSION,
+        scene: telerobot_summary(),
+    };
+    let garbage: Vec<Vec<u8>> = vec![
+        vec![0xde, 0xad, 0xbe, 0xef],
+        vec![2],
+        o2t::encode(&o2t::Message::Bye),
+        t2o::encode(&t2o::Message::Welcome(welcome.clone())),
+        vec![0xff; 300],
+    ];
+    let sent = garbage.len() as u64;
+    let raw = RawTelerobot::start(&rt, &certs.telerobot, &certs.operator, welcome, garbage);
+    let operator = spawn_operator(operator_config(
+        raw.addr,
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        3.0,
+        0.0,
+    ));
+    let conn = wait_for(Duration::from_secs(10), || raw.conn.lock().unwrap().clone()).unwrap();
+    udp_junk(conn.remote_address(), 20);
+    let outcome = operator.join().unwrap().unwrap();
+    assert_eq!(
+        outcome.report.link.garbage, sent,
+        "{:?}",
+        outcome.report.link
+    );
+    assert_eq!(outcome.report.sessions, 1);
+    assert!(outcome.report.loop_timing.ticks >= 2900);
+}
