@@ -55,6 +55,12 @@ const NEGLIGIBLE_MOVE_M: f64 = 1e-9;
 /// 1 mm grid; a sweep's ball a few hundred more.
 const INITIAL_NEIGHBOURS: usize = 1024;
 
+/// A query asks for this fraction of `r3` beyond the ball it needs, so that the next ticks,
+/// while the proxy moves less than that, reuse its answer instead of querying again (every pass
+/// filters by its own radius, so extra points change nothing but the summation order). At the
+/// default radii on a 1 mm grid: step median 9.6 → 7.3 µs, p99 20 → 17 µs (`mmt contact-bench`).
+const QUERY_MARGIN_OF_R3: f64 = 1.0 / 24.0;
+
 /// The three-sphere proxy (thesis appendix C). See the module docs for the protocol.
 #[derive(Clone, Debug)]
 pub struct Proxy {
@@ -202,7 +208,12 @@ impl Proxy {
         let a = c.rest_distance_m();
         let from = self.position;
         let mid = vec3::add(from, vec3::scale(dir, 0.5 * len));
-        self.scratch.ensure(cloud, mid, 0.5 * len + c.r3_m.max(a));
+        self.scratch.ensure(
+            cloud,
+            mid,
+            0.5 * len + c.r3_m.max(a),
+            QUERY_MARGIN_OF_R3 * c.r3_m,
+        );
         self.scratch
             .buf
             .iter()
@@ -289,7 +300,11 @@ impl Default for Scratch {
 impl Scratch {
     /// Makes the buffer hold at least every point of `cloud` within `radius` of `centre`,
     /// querying only when the ball it holds does not contain that one.
-    fn ensure<N: Neighbours>(&mut self, cloud: &N, centre: V3, radius: f64) {
+    ///
+    /// Kept out of line: inlined into the step, the query's code cost the surface passes
+    /// about 2 µs per step (measured; register pressure in the hot loops).
+    #[inline(never)]
+    fn ensure<N: Neighbours>(&mut self, cloud: &N, centre: V3, radius: f64, margin: f64) {
         let held = self.cloud == cloud.cloud_id()
             && vec3::norm(vec3::sub(centre, self.centre)) + radius <= self.radius;
         if held {
@@ -297,6 +312,7 @@ impl Scratch {
         }
         self.buf.clear();
         let buf = &mut self.buf;
+        let radius = radius + margin;
         cloud.for_each_within(centre, radius, |nb| buf.push(nb));
         self.cloud = cloud.cloud_id();
         self.centre = centre;
@@ -314,7 +330,7 @@ impl Scratch {
         c: &ProxyConfig,
         with_point: bool,
     ) -> LocalSurface {
-        self.ensure(cloud, at, c.r3_m);
+        self.ensure(cloud, at, c.r3_m, QUERY_MARGIN_OF_R3 * c.r3_m);
         if let Some((cached_at, cached_point, surface)) = self.surface
             && cached_at == at
             && (cached_point || !with_point)
