@@ -32,8 +32,11 @@ pub struct Series {
     pub rendering: Vec<bool>,
     /// Operator's contact deflection and mass velocity per tangent (sliding mass only).
     pub operator_state: Vec<[Option<(f64, f64)>; 2]>,
-    /// True force on the tool while executing the command of this tick [N].
+    /// Force on the tool the telerobot's sensor measured while executing the command of this
+    /// tick [N]: noise and bias included, as on a real robot (the reference of every error).
     pub measured: Vec<Option<[f64; 3]>>,
+    /// The true force of the same tick [N], where a simulator knows it (else all `None`).
+    pub true_force: Vec<Option<[f64; 3]>>,
     /// True contact while executing the command of this tick.
     pub contact_true: Vec<Option<bool>>,
     /// True contact deflection and mass velocity per tangent, same alignment.
@@ -60,6 +63,7 @@ impl Series {
             rendering: Vec::with_capacity(n),
             operator_state: Vec::with_capacity(n),
             measured: vec![None; n],
+            true_force: vec![None; n],
             contact_true: vec![None; n],
             true_state: vec![None; n],
             stable: Vec::with_capacity(n),
@@ -113,6 +117,16 @@ impl Series {
             self.contact_true[i] = Some(in_contact);
             self.true_state[i] = Some(true_state);
         }
+    }
+
+    /// Records the true force while executing the command sampled at `command_time_ns` (the
+    /// first for a command counts): simulation only.
+    pub fn push_true_force(&mut self, command_time_ns: i64, force: [f64; 3]) {
+        let idx = command_time_ns / self.period_ns;
+        if command_time_ns < 0 || idx as usize >= self.true_force.len() {
+            return;
+        }
+        self.true_force[idx as usize].get_or_insert(force);
     }
 
     /// Tick period [s].
@@ -209,6 +223,9 @@ pub struct ExperimentReport {
     pub rms_error_pct_after_stable: Option<f64>,
     /// The same on the scene's second tangent only (the thesis's y axis).
     pub tangential_rms_error_pct_after_stable: Option<f64>,
+    /// After stable, against the true force instead of the measured one (simulation only): the
+    /// error of the model without the sensor's noise and bias.
+    pub rms_error_pct_after_stable_vs_true_force: Option<f64>,
     /// After stable, per band.
     pub bands: Vec<Band>,
     /// The shadow node's error after stable: contact from the telerobot's state only.
@@ -280,9 +297,13 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
     let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
     let render_start = s.rendering.iter().position(|r| *r);
     let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
-    let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| -> Option<f64> {
+    let rms_pct_vs = |reference: &[Option<[f64; 3]>],
+                      from: usize,
+                      rendered: &[[f64; 3]],
+                      proj: Option<[f64; 3]>|
+     -> Option<f64> {
         let (mut e2, mut m2) = (0.0, 0.0);
-        for (m, r) in s.measured.iter().zip(rendered).skip(from) {
+        for (m, r) in reference.iter().zip(rendered).skip(from) {
             let Some(m) = *m else { continue };
             let e = vec3::sub(*r, m);
             match proj {
@@ -297,6 +318,9 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
             }
         }
         (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
+    };
+    let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| {
+        rms_pct_vs(&s.measured, from, rendered, proj)
     };
     let after = render_start.unwrap_or(s.len());
     let (mut e2, mut m2) = ([0.0; BANDS.len()], [0.0; BANDS.len()]);
@@ -358,6 +382,12 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         rms_error_pct: first_contact.and_then(|fc| rms_pct(fc, &s.rendered, None)),
         rms_error_pct_after_stable: rms_pct(after, &s.rendered, None),
         tangential_rms_error_pct_after_stable: rms_pct(after, &s.rendered, Some(s.axis)),
+        rms_error_pct_after_stable_vs_true_force: rms_pct_vs(
+            &s.true_force,
+            after,
+            &s.rendered,
+            None,
+        ),
         bands,
         rms_error_pct_remote_contact: rms_pct(after, &s.rendered_remote, None),
         error_over_time,
@@ -498,16 +528,17 @@ impl Series {
     pub fn to_csv(&self) -> String {
         use std::fmt::Write;
         let mut out = String::with_capacity(self.len() * 200);
-        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering\n");
+        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering,true_x_n,true_y_n,true_z_n\n");
         let b = |v: bool| if v { 1 } else { 0 };
         for i in 0..self.len() {
             let p = self.position[i];
             let m = self.measured[i].map_or([f64::NAN; 3], |m| m);
             let r = self.rendered[i];
             let q = self.rendered_remote[i];
+            let t = self.true_force[i].map_or([f64::NAN; 3], |t| t);
             let _ = writeln!(
                 out,
-                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{}",
+                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{},{:.5},{:.5},{:.5}",
                 i as f64 * self.dt_s(),
                 p[0],
                 p[1],
@@ -525,6 +556,9 @@ impl Series {
                 b(self.contact_local[i]),
                 b(self.contact_remote[i]),
                 b(self.rendering[i]),
+                t[0],
+                t[1],
+                t[2],
             );
         }
         out

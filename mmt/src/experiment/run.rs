@@ -131,9 +131,10 @@ pub fn run(
                 shared_clouds.pop_front();
             }
         }
+        series.push_true_force(target.command_sample_time_ns, sample.truth.force_n);
         series.push_telerobot(
             target.command_sample_time_ns,
-            sample.truth.force_n,
+            sample.measured.force_n,
             sample.in_contact,
             telerobot.is_stable(),
             telerobot.reconstruction(),

@@ -33,6 +33,13 @@ fn exp1_meets_its_figures() {
     let after = r.rms_error_pct_after_stable.unwrap();
     assert!(after <= 5.0, "after stable {after:.2} %");
     assert_bands(&r, 10.0);
+    // The error against the measured force holds the sensor's noise and bias; against the
+    // truth only the model's own error is left.
+    let vs_truth = r.rms_error_pct_after_stable_vs_true_force.unwrap();
+    assert!(
+        vs_truth < after && vs_truth <= 2.5,
+        "against the truth {vs_truth:.2} %, measured {after:.2} %"
+    );
     assert_eq!(
         r.contact_switch_latency_ms.switches, 5,
         "three episodes: five switches"

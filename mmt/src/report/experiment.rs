@@ -34,6 +34,13 @@ pub fn table(r: &ExperimentReport) -> String {
         pct(r.tangential_rms_error_pct_after_stable),
         "",
     );
+    if r.rms_error_pct_after_stable_vs_true_force.is_some() {
+        row(
+            "  against the true force (no sensor noise, bias)",
+            pct(r.rms_error_pct_after_stable_vs_true_force),
+            "",
+        );
+    }
     for b in &r.bands {
         row(
             &format!("  band {:.1}–{:.1} Hz", b.lo_hz, b.hi_hz),
