@@ -137,7 +137,7 @@ impl HapticLoop {
             tracing::warn!("disabling the device: {e}");
         }
         LoopEnd {
-            safety: *self.safety.stats(),
+            safety: self.safety.stats(),
             force_record: *self.device.force_record(),
             node: self.node.stats(),
             device: self.device,

@@ -413,6 +413,17 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             s.workspace.episodes
         ),
     );
+    let p = &s.passivity;
+    row(
+        "passivity: min energy / dissipated / ticks",
+        format!(
+            "{:.2} / {:.2} mJ / {} ({} capped)",
+            p.min_energy_j * 1e3,
+            p.dissipated_j * 1e3,
+            p.controlling.ticks,
+            p.capped.ticks
+        ),
+    );
     writeln!(out, "network")?;
     for (name, value) in rows {
         writeln!(out, "{name:<46} {value:>14}")?;

@@ -21,19 +21,25 @@
 //! 4. **Software watchdog** gain ([`watchdog`]): fades everything to zero on loop overrun or stale
 //!    parameters, and back in after recovery. It scales the spring too: when timing is lost no
 //!    force should be trusted; the device's own watchdog is the next line.
-//! 5. **Force-rate limit** [N/s], last, so no rule above (clutch, workspace entry, model switch)
-//!    can make the output step.
-//! 6. A final finite check.
+//! 5. **Force-rate limit** [N/s], so no rule above (clutch, workspace entry, model switch) can
+//!    make the output step.
+//! 6. **Passivity** ([`passivity`]): the energy observed at the device port over the last tick
+//!    (with the force actually written), and the damping that keeps it from going negative,
+//!    added last so nothing after it undoes it; then saturation again (a damping force may not
+//!    exceed the device either; scaling down keeps the port passive).
+//! 7. A final finite check.
 //!
 //! The enable ramp is not here: it belongs to the device state machine
 //! ([`crate::device::ManagedDevice`]), which multiplies this layer's output.
 
+pub mod passivity;
 pub mod position;
 pub mod stats;
 pub mod watchdog;
 
 use std::time::Duration;
 
+pub use passivity::{PassivityConfig, PassivityStats};
 pub use position::{InvalidScale, PositionMap, PositionScale};
 pub use stats::{Edge, SafetyStats, TripCount};
 pub use watchdog::{SoftWatchdog, WatchdogConfig};
@@ -56,6 +62,8 @@ pub struct SafetyConfig {
     pub watchdog: WatchdogConfig,
     /// Initial position scale (commanded m per device m), finite and > 0. Default 1.
     pub position_scale: f64,
+    /// Passivity observer and controller at the device port.
+    pub passivity: PassivityConfig,
 }
 
 impl Default for SafetyConfig {
@@ -66,6 +74,7 @@ impl Default for SafetyConfig {
             workspace_stiffness_n_per_m: 500.0,
             watchdog: WatchdogConfig::default(),
             position_scale: 1.0,
+            passivity: PassivityConfig::default(),
         }
     }
 }
@@ -111,6 +120,7 @@ pub struct SafetyLayer {
     workspace_k: f64,
     watchdog: SoftWatchdog,
     position: PositionMap,
+    passivity: passivity::Passivity,
     last_force: Vec3,
     stats: SafetyStats,
 }
@@ -171,6 +181,23 @@ impl SafetyLayer {
                 expected: "at least watchdog.fade_out, so that every trip reaches zero force",
             });
         }
+        let p = &config.passivity;
+        let max_damping = match p.max_damping_n_s_per_m {
+            None => device.max_damping_n_s_per_m.max(0.0),
+            Some(d) if d.is_finite() && d >= 0.0 => d,
+            Some(d) => {
+                return Err(SafetyError::InvalidConfig {
+                    field: "passivity.max_damping_n_s_per_m",
+                    value: d.to_string(),
+                    expected: "a finite damping ≥ 0 N·s/m",
+                });
+            }
+        };
+        positive(
+            "passivity.energy_cap_j",
+            p.energy_cap_j,
+            "a finite energy > 0 J",
+        )?;
         Ok(Self {
             max_force_n,
             max_rate_n_per_s,
@@ -178,6 +205,7 @@ impl SafetyLayer {
             workspace_k: k.min(device.max_stiffness_n_per_m.max(0.0)),
             watchdog: SoftWatchdog::new(*w),
             position: PositionMap::new(PositionScale::new(config.position_scale)?),
+            passivity: passivity::Passivity::new(p, max_damping),
             last_force: vec3::ZERO,
             stats: SafetyStats::default(),
         })
@@ -185,8 +213,11 @@ impl SafetyLayer {
 
     /// The counters so far.
     #[must_use]
-    pub fn stats(&self) -> &SafetyStats {
-        &self.stats
+    pub fn stats(&self) -> SafetyStats {
+        SafetyStats {
+            passivity: *self.passivity.stats(),
+            ..self.stats
+        }
     }
 
     /// The force limit in use [N].
@@ -266,6 +297,9 @@ impl SafetyLayer {
             "force below full strength",
         );
 
+        // The energy of the interval that just ended, with the force that was written.
+        self.passivity.observe(tick.measured_cp, self.last_force);
+
         // 1. Non-finite: zero at once, bypassing the rate limit.
         let finite = vec3::is_finite(tick.force_n);
         log_edge(
@@ -324,7 +358,21 @@ impl SafetyLayer {
         );
         let out = vec3::add(self.last_force, vec3::clamp_norm(step, max_step));
 
-        // 6. Final guard.
+        // 6. Passivity, then the device limit again.
+        let (out, controlling, capped) = self.passivity.control(out, wd.dt_s);
+        log_edge(
+            controlling,
+            "passivity",
+            "energy at the device port going negative; damping added",
+        );
+        log_edge(
+            capped,
+            "passivity cap",
+            "passivity damping capped at the device's limit",
+        );
+        let out = vec3::clamp_norm(out, self.max_force_n);
+
+        // 7. Final guard.
         let out = if vec3::is_finite(out) {
             out
         } else {

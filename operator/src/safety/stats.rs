@@ -47,7 +47,7 @@ impl TripCount {
 
 /// Counters of every safety rule. One per layer; read with
 /// [`super::SafetyLayer::stats`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SafetyStats {
     /// Ticks processed.
     pub ticks: u64,
@@ -71,4 +71,6 @@ pub struct SafetyStats {
     pub clutch: TripCount,
     /// Position-scale changes refused (non-positive or non-finite).
     pub scale_rejections: u64,
+    /// Passivity observer and controller.
+    pub passivity: super::PassivityStats,
 }

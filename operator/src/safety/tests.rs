@@ -448,3 +448,249 @@ fn a_device_without_force_output_gets_zero() {
     };
     assert_eq!(s.filter_force(&t), [0.0; 3]);
 }
+
+// ---- Passivity at the device port ----
+
+/// A layer with no rate limit and the given passivity settings.
+fn passivity_layer(passivity: PassivityConfig) -> SafetyLayer {
+    layer(SafetyConfig {
+        max_force_rate_n_per_s: 1e12,
+        passivity,
+        ..SafetyConfig::default()
+    })
+}
+
+fn observe_only() -> PassivityConfig {
+    PassivityConfig {
+        control: false,
+        ..PassivityConfig::default()
+    }
+}
+
+/// The hand moves the device along x, `x = A sin ωt` (A = 20 mm, 1 Hz), for `ticks` ticks of
+/// 1 ms; `env(k, x, v)` is the renderer's force along x. Returns the positions and the forces
+/// written.
+fn drive(
+    s: &mut SafetyLayer,
+    ticks: u32,
+    env: impl Fn(u32, f64, f64) -> f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let (a, w) = (0.02, std::f64::consts::TAU);
+    let (mut xs, mut out) = (Vec::new(), Vec::new());
+    for k in 0..ticks {
+        let t = f64::from(k) * 1e-3;
+        let (x, v) = (a * (w * t).sin(), a * w * (w * t).cos());
+        let f = s.filter_force(&ForceTick {
+            measured_cp: [x, 0.0, 0.0],
+            ..tick(k, [env(k, x, v), 0.0, 0.0])
+        });
+        assert!(vec3::is_finite(f));
+        assert_eq!((f[1], f[2]), (0.0, 0.0));
+        xs.push(x);
+        out.push(f[0]);
+    }
+    (xs, out)
+}
+
+/// `E(n) = −Σ F(j−1)·(x(j) − x(j−1))`, recomputed outside the layer from what it wrote.
+fn port_energy(xs: &[f64], out: &[f64]) -> Vec<f64> {
+    let mut e = vec![0.0];
+    for j in 1..xs.len() {
+        let last = e[j - 1];
+        e.push(last - out[j - 1] * (xs[j] - xs[j - 1]));
+    }
+    e
+}
+
+/// A spring rendered with a zero-order hold is active by exactly `½k Σ Δx²` (Colgate's point):
+/// the observer's energy is the closed form `½k x² − ½k Σ Δx²`.
+#[test]
+fn the_observer_measures_a_held_spring_exactly() {
+    let k = 500.0;
+    let mut s = passivity_layer(observe_only());
+    let (xs, out) = drive(&mut s, 3000, |_, x, _| -k * x);
+    assert!(
+        out.iter().zip(&xs).all(|(f, x)| (f + k * x).abs() <= 1e-12),
+        "observing changes nothing"
+    );
+    let mut sum_d2 = 0.0;
+    let mut min_exact = 0.0f64;
+    for j in 1..xs.len() {
+        sum_d2 += (xs[j] - xs[j - 1]).powi(2);
+        min_exact = min_exact.min(0.5 * k * xs[j] * xs[j] - 0.5 * k * sum_d2);
+    }
+    let n = xs.len() - 1;
+    let exact = 0.5 * k * xs[n] * xs[n] - 0.5 * k * sum_d2;
+    let p = s.stats().passivity;
+    assert!(
+        (p.energy_j - exact).abs() < 1e-12,
+        "{} vs {exact}",
+        p.energy_j
+    );
+    assert!((p.min_energy_j - min_exact).abs() < 1e-12);
+    assert!(p.min_energy_j < 0.0, "a held spring is active");
+    assert_eq!(p.controlling.ticks, 0);
+}
+
+/// A negative damper (an active environment, 10 N·s/m) is held at zero energy by the
+/// controller: the energy at the port, recomputed from the forces actually written, never goes
+/// below one tick's prediction error after the first tick. Without the controller it loses b∫v² (≈ 0.24 J in 3 s).
+#[test]
+fn the_controller_keeps_an_active_environment_passive() {
+    let b = 10.0;
+    let env = |_, _, v: f64| b * v;
+    let mut observed = passivity_layer(observe_only());
+    drive(&mut observed, 3000, env);
+    let loose = observed.stats().passivity.min_energy_j;
+    assert!(loose < -0.2, "uncontrolled energy {loose} J");
+
+    let mut s = passivity_layer(PassivityConfig::default());
+    let (xs, out) = drive(&mut s, 3000, env);
+    let energy = port_energy(&xs, &out);
+    // The first interval cannot be predicted (no displacement yet); from the next tick on the
+    // controller holds the energy at zero.
+    assert!(energy[1] < 0.0);
+    let min = energy[2..].iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(min > -1e-5, "controlled energy reached {min} J");
+    let p = s.stats().passivity;
+    assert!((p.energy_j - energy[energy.len() - 1]).abs() < 1e-12);
+    assert!(p.controlling.ticks > 2000, "{:?}", p.controlling);
+    assert_eq!(p.capped.ticks, 0);
+    assert!(p.dissipated_j > 0.2, "{}", p.dissipated_j);
+}
+
+/// A passive environment (spring and damper with b > kT/2) is never touched: the force written
+/// is the renderer's, bit for bit.
+#[test]
+fn a_passive_environment_is_left_alone() {
+    let (k, b) = (500.0, 5.0);
+    let mut s = passivity_layer(PassivityConfig::default());
+    let (xs, out) = drive(&mut s, 3000, |_, x, v| -k * x - b * v);
+    let p = s.stats().passivity;
+    assert_eq!(p.controlling.ticks, 0, "{p:?}");
+    assert!(p.min_energy_j >= 0.0);
+    let (a, w) = (0.02, std::f64::consts::TAU);
+    for (j, (x, f)) in xs.iter().zip(&out).enumerate() {
+        let v = a * w * (w * j as f64 * 1e-3).cos();
+        assert!((f + k * x + b * v).abs() <= 1e-12, "tick {j}: {f}");
+    }
+}
+
+/// Beyond the device's damping limit the controller adds the limit and says so: a 100 N·s/m
+/// negative damper against the omega's 30 N·s/m leaves 70 % of the activity.
+#[test]
+fn the_controller_damping_is_capped_at_the_device_limit() {
+    let env = |_, _, v: f64| 100.0 * v;
+    let mut observed = passivity_layer(observe_only());
+    drive(&mut observed, 2000, env);
+    let mut s = passivity_layer(PassivityConfig::default());
+    drive(&mut s, 2000, env);
+    let p = s.stats().passivity;
+    assert!(p.capped.ticks > 1900, "{:?}", p.capped);
+    let ratio = p.min_energy_j / observed.stats().passivity.min_energy_j;
+    assert!((ratio - 0.7).abs() < 0.02, "ratio {ratio}");
+}
+
+/// The reserve is capped: energy a damper dissipated long ago does not pay for later activity.
+/// With an unbounded reserve the 2 s of dissipation would hide the 2 s of activity after it.
+#[test]
+fn the_energy_reserve_is_capped() {
+    let b = 20.0;
+    let env = |k: u32, _, v: f64| if k < 2000 { -b * v } else { b * v };
+    let mut unbounded = passivity_layer(PassivityConfig {
+        energy_cap_j: 1e3,
+        ..PassivityConfig::default()
+    });
+    drive(&mut unbounded, 4000, env);
+    assert_eq!(unbounded.stats().passivity.controlling.ticks, 0);
+
+    let cap = 0.01;
+    let mut s = passivity_layer(PassivityConfig {
+        energy_cap_j: cap,
+        ..PassivityConfig::default()
+    });
+    let (xs, out) = drive(&mut s, 4000, env);
+    let p = s.stats().passivity;
+    assert!(p.controlling.ticks > 1500, "{:?}", p.controlling);
+    assert!(p.energy_j <= cap && p.energy_j > -1e-5);
+    // Recomputed with the cap, the port's energy matches and stays non-negative.
+    let mut e = 0.0f64;
+    for j in 1..xs.len() {
+        e = (e - out[j - 1] * (xs[j] - xs[j - 1])).min(cap);
+        assert!(e > -1e-5, "tick {j}: {e} J");
+    }
+    assert!((e - p.energy_j).abs() < 1e-12);
+}
+
+/// Garbage positions: a NaN interval and a 5 cm jump are left out of the energy and counted;
+/// nothing non-finite comes out.
+#[test]
+fn position_glitches_are_left_out_of_the_energy() {
+    let mut s = passivity_layer(PassivityConfig::default());
+    let feed = |s: &mut SafetyLayer, k: u32, x: f64, f: f64| {
+        s.filter_force(&ForceTick {
+            measured_cp: [x, 0.0, 0.0],
+            ..tick(k, [f, 0.0, 0.0])
+        })
+    };
+    feed(&mut s, 0, 0.0, 2.0);
+    feed(&mut s, 1, 0.001, 2.0); // E = −2 N · 1 mm = −2 mJ: the controller acts from here
+    let after_first = s.stats().passivity.energy_j;
+    assert!((after_first + 0.002).abs() < 1e-15);
+    let f = feed(&mut s, 2, f64::NAN, 2.0);
+    assert!(vec3::is_finite(f));
+    let f = feed(&mut s, 3, 0.06, 2.0); // first finite sample after NaN: no interval
+    assert!(vec3::is_finite(f));
+    let f = feed(&mut s, 4, 0.0, 2.0); // 6 cm in one tick: a glitch
+    assert!(vec3::is_finite(f));
+    let p = s.stats().passivity;
+    assert_eq!(p.glitches, 2);
+    assert_eq!(p.energy_j, after_first);
+}
+
+/// A device without damping to spare (max damping 0, as the SpaceMouse) is observed only.
+#[test]
+fn zero_damping_limit_observes_only() {
+    let mut s = passivity_layer(PassivityConfig {
+        max_damping_n_s_per_m: Some(0.0),
+        ..PassivityConfig::default()
+    });
+    drive(&mut s, 1000, |_, _, v| 10.0 * v);
+    let p = s.stats().passivity;
+    assert_eq!(p.controlling.ticks, 0);
+    assert!(p.min_energy_j < -0.01);
+}
+
+#[test]
+fn invalid_passivity_settings_are_refused_with_the_field() {
+    for (passivity, field) in [
+        (
+            PassivityConfig {
+                max_damping_n_s_per_m: Some(-1.0),
+                ..PassivityConfig::default()
+            },
+            "passivity.max_damping_n_s_per_m",
+        ),
+        (
+            PassivityConfig {
+                max_damping_n_s_per_m: Some(f64::NAN),
+                ..PassivityConfig::default()
+            },
+            "passivity.max_damping_n_s_per_m",
+        ),
+        (
+            PassivityConfig {
+                energy_cap_j: 0.0,
+                ..PassivityConfig::default()
+            },
+            "passivity.energy_cap_j",
+        ),
+    ] {
+        let cfg = SafetyConfig {
+            passivity,
+            ..SafetyConfig::default()
+        };
+        let e = SafetyLayer::new(&omega(), &cfg).unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+}
