@@ -9,6 +9,12 @@
 /// How far behind the newest accepted `seq` a datagram can still be told duplicate or late.
 pub const REORDER_WINDOW: u64 = 64;
 
+/// How far ahead of the newest accepted `seq` a datagram may be and still be believed: 2²⁴
+/// sequence numbers, 4.6 hours of datagrams at 1 kHz, far beyond any gap a live connection can
+/// have (its idle timeout closes it first). A `seq` further ahead is a peer's bug; accepting it
+/// would make every later honest datagram look stale until the connection is replaced.
+pub const MAX_AHEAD: u64 = 1 << 24;
+
 /// What to do with one received datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Arrival {
@@ -25,6 +31,9 @@ pub enum Arrival {
     /// More than [`REORDER_WINDOW`] behind the newest (or `seq` 0, never sent): dropped without
     /// telling duplicate from late.
     TooOld,
+    /// More than [`MAX_AHEAD`] ahead of the newest: not a sequence number the peer can have
+    /// reached; dropped, and the newest is left as it was.
+    Implausible,
 }
 
 impl Arrival {
@@ -47,6 +56,8 @@ pub struct SequenceStats {
     pub duplicates: u64,
     /// Dropped datagrams that arrived after a newer one (reordered), within the window.
     pub late: u64,
+    /// Dropped datagrams whose `seq` jumped more than [`MAX_AHEAD`] ahead.
+    pub implausible: u64,
     /// Sequence numbers jumped over by accepted datagrams: lost for the loops, whether or not they
     /// turn up late afterwards.
     pub gaps: u64,
@@ -78,7 +89,9 @@ impl SequenceTracker {
     /// Classifies a received `seq` and counts it.
     pub fn observe(&mut self, seq: u64) -> Arrival {
         self.stats.received += 1;
-        let arrival = if seq > self.newest {
+        let arrival = if seq > self.newest.saturating_add(MAX_AHEAD) {
+            Arrival::Implausible
+        } else if seq > self.newest {
             let ahead = seq - self.newest;
             self.window = self.window.checked_shl(saturate_u32(ahead)).unwrap_or(0) | 1;
             self.newest = seq;
@@ -101,6 +114,7 @@ impl SequenceTracker {
             }
             Arrival::Late => self.stats.late += 1,
             Arrival::Duplicate => self.stats.duplicates += 1,
+            Arrival::Implausible => self.stats.implausible += 1,
             Arrival::TooOld => {}
         }
         if !arrival.is_accepted() {
@@ -177,6 +191,7 @@ mod tests {
                 stale: 2,
                 duplicates: 1,
                 late: 1,
+                implausible: 0,
                 gaps: 2,
             }
         );
@@ -199,18 +214,44 @@ mod tests {
     }
 
     #[test]
-    fn far_behind_or_zero_is_too_old_and_huge_jumps_do_not_overflow() {
-        let (arrivals, stats) = observe_all(&[100, 100 - REORDER_WINDOW, 0, u64::MAX, 1]);
+    fn far_behind_or_zero_is_too_old() {
+        let (arrivals, stats) = observe_all(&[100, 100 - REORDER_WINDOW, 0, 101 - REORDER_WINDOW]);
         assert_eq!(arrivals[1], Arrival::TooOld);
         assert_eq!(arrivals[2], Arrival::TooOld);
+        assert_eq!(arrivals[3], Arrival::Late);
+        assert_eq!(stats.stale, 3);
+    }
+
+    #[test]
+    fn an_implausible_jump_is_dropped_and_honest_datagrams_go_on() {
+        // A peer's bug sends u64::MAX, then a seq just beyond the bound; the honest sequence
+        // continues and is still accepted.
+        let (arrivals, stats) = observe_all(&[1, u64::MAX, 2 + MAX_AHEAD, 2, 1 + MAX_AHEAD, 3]);
+        assert_eq!(arrivals[1], Arrival::Implausible);
+        assert_eq!(arrivals[2], Arrival::Implausible);
+        assert_eq!(arrivals[3], Arrival::Newer { skipped: 0 });
+        // Exactly MAX_AHEAD ahead of 2 is still believed (a long outage), and then 3 is late.
         assert_eq!(
-            arrivals[3],
+            arrivals[4],
             Arrival::Newer {
-                skipped: u64::MAX - 101
+                skipped: MAX_AHEAD - 2
             }
         );
-        assert_eq!(arrivals[4], Arrival::TooOld);
+        assert_eq!(arrivals[5], Arrival::TooOld);
+        assert_eq!(stats.implausible, 2);
+        assert_eq!(stats.accepted, 3);
         assert_eq!(stats.stale, 3);
+        // From nothing, the first datagram may be at most MAX_AHEAD.
+        let (arrivals, _) = observe_all(&[MAX_AHEAD + 1, MAX_AHEAD]);
+        assert_eq!(
+            arrivals,
+            [
+                Arrival::Implausible,
+                Arrival::Newer {
+                    skipped: MAX_AHEAD - 1
+                }
+            ]
+        );
     }
 
     #[test]

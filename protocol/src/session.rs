@@ -10,7 +10,9 @@
 //! after [`Session::new`]: the 1 kHz loops call it every tick.
 
 use crate::header::{Header, NO_ECHO};
-pub use crate::sequence::{Arrival, LatestSeq, REORDER_WINDOW, SequenceStats, SequenceTracker};
+pub use crate::sequence::{
+    Arrival, LatestSeq, MAX_AHEAD, REORDER_WINDOW, SequenceStats, SequenceTracker,
+};
 
 /// Sent datagrams remembered for RTT: the echo of a `seq` older than this many datagrams gives no
 /// sample. 4096 covers 4 s at 1 kHz, well above the 800 ms round trip of the 400 ms experiments.

@@ -74,8 +74,9 @@ pub struct LinkSnapshot {
     pub send_oversized: u64,
     /// Datagrams quinn refused (connection lost, datagrams disabled by the peer).
     pub send_failed: u64,
-    /// Datagrams received that did not decode, or decoded to a message that is not a datagram of
-    /// this direction: counted and ignored.
+    /// Datagrams received that did not decode, decoded to a message that is not a datagram of
+    /// this direction, or carried a sequence number implausibly far ahead
+    /// ([`protocol::session::MAX_AHEAD`]): counted and ignored.
     pub garbage: u64,
     /// Well-formed datagrams with a header received (`protocol::session` counts).
     pub received: u64,
@@ -254,6 +255,9 @@ impl DatagramLink {
     /// [`protocol::session::LatestSeq`] for per-kind use).
     pub fn on_header(&mut self, header: &Header, now_ns: i64) -> Arrival {
         let arrival = self.session.on_receive(header, now_ns);
+        if arrival == Arrival::Implausible {
+            self.stats.count_garbage();
+        }
         let s = *self.session.stats();
         let values = [s.received, s.accepted, s.late, s.duplicates, s.lost()];
         let targets = self.stats.sequence_counters();
@@ -306,5 +310,52 @@ impl Drop for DatagramLink {
             base.store(target.load(Relaxed), Relaxed);
         }
         self.stats.clear_session();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::session::MAX_AHEAD;
+
+    fn header(seq: u64) -> Header {
+        Header {
+            seq,
+            sample_time_ns: 0,
+            send_time_ns: 0,
+            echo_seq: protocol::NO_ECHO,
+            echo_hold_ns: 0,
+        }
+    }
+
+    #[test]
+    fn an_implausible_sequence_number_is_garbage_and_the_link_goes_on() {
+        let stats = LinkStats::new();
+        let mut link = DatagramLink::new(Arc::clone(&stats));
+        assert!(link.on_header(&header(1), 10).is_accepted());
+        assert_eq!(link.on_header(&header(u64::MAX), 20), Arrival::Implausible);
+        assert_eq!(
+            link.on_header(&header(2 + MAX_AHEAD), 30),
+            Arrival::Implausible
+        );
+        assert!(link.on_header(&header(2), 40).is_accepted());
+        let s = stats.snapshot();
+        assert_eq!((s.garbage, s.received, s.accepted), (2, 4, 2));
+    }
+
+    #[test]
+    fn sequence_counts_stay_cumulative_across_sessions() {
+        let stats = LinkStats::new();
+        for _ in 0..2 {
+            let mut link = DatagramLink::new(Arc::clone(&stats));
+            for seq in [1, 2, 4, 3, 4] {
+                link.on_header(&header(seq), 0);
+            }
+        }
+        let s = stats.snapshot();
+        assert_eq!(
+            (s.received, s.accepted, s.late, s.duplicates, s.lost),
+            (10, 6, 2, 2, 0)
+        );
     }
 }

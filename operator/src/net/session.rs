@@ -277,8 +277,12 @@ impl Incoming {
         slot: &Mailbox<Received<T>>,
         now: i64,
     ) {
-        self.link.on_header(&header, now);
-        if self.seqs[kind].admit(header.seq) {
+        // Late for the direction can still be the newest of its kind; duplicates, implausible
+        // jumps and datagrams beyond the window never are.
+        let arrival = self.link.on_header(&header, now);
+        if matches!(arrival, Arrival::Newer { .. } | Arrival::Late)
+            && self.seqs[kind].admit(header.seq)
+        {
             slot.push(self.received(message, now));
         }
     }
