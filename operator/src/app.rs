@@ -24,7 +24,7 @@ use crate::helper;
 use crate::net::{self, NetConfig, NetError, OperatorLink};
 use crate::report::{self, NetworkedReport, RunFacts};
 use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
-use crate::settings::{RateError, node_settings};
+use crate::settings::{SettingsError, node_settings};
 
 /// Everything `operator run` needs, validated.
 #[derive(Clone, Debug)]
@@ -80,9 +80,9 @@ pub enum RunError {
     /// The telerobot refused us, or we refused it (certificates, version, busy).
     #[error(transparent)]
     Net(#[from] NetError),
-    /// The telerobot's control rate cannot be run.
+    /// The telerobot's scene summary cannot be run (control rate, contact radii).
     #[error(transparent)]
-    Rate(#[from] RateError),
+    Settings(#[from] SettingsError),
     /// The operator node could not be built.
     #[error("operator node: {0}")]
     Node(#[from] mmt::node::telerobot::NodeError),

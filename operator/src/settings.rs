@@ -1,12 +1,12 @@
 //! The operator node's settings from the telerobot's `Welcome`.
 //!
 //! A remote operator does not have the telerobot's scene file: the `Welcome`'s scene summary
-//! says what to render (the model structure per axis group) and at which rate. Everything else
-//! the operator node uses is operator-side: the renderer settings (defaults at the control rate)
-//! and the contact detector's three radii, which the summary does not carry — they are the
-//! defaults every shipped scene uses (`mmt::scene::ProxySection::default`: 4, 6 and 30 mm). The
+//! says what to render (the model structure per axis group), at which rate, and the contact
+//! detector's three radii, so the operator's local detector makes and breaks contact where the
+//! telerobot's does. The renderer settings are operator-side (defaults at the control rate). The
 //! scene inside the settings is a template whose ground truth the operator node never reads.
 
+use mmt::contact::ProxyError;
 use mmt::node::{NodeSettings, structure_from_wire};
 use mmt::scene::{ProxySection, Scene};
 use protocol::telerobot_to_operator::SceneSummary;
@@ -16,19 +16,28 @@ pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 100.0..=10_000.0;
 
 /// A `Welcome` the operator cannot run with.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("the telerobot's control rate {0} Hz is out of range: expected 100 to 10 000 Hz")]
-pub struct RateError(pub f64);
+pub enum SettingsError {
+    /// The control rate is outside [`RATE_RANGE_HZ`].
+    #[error("the telerobot's control rate {0} Hz is out of range: expected 100 to 10 000 Hz")]
+    Rate(f64),
+    /// The contact detector's radii do not make a detector.
+    #[error("the telerobot's contact detector: {0}")]
+    Proxy(#[from] ProxyError),
+}
 
 /// The operator node's settings for the telerobot's scene summary.
-pub fn node_settings(summary: &SceneSummary) -> Result<NodeSettings, RateError> {
+pub fn node_settings(summary: &SceneSummary) -> Result<NodeSettings, SettingsError> {
     let rate = summary.control_rate_hz;
     if !RATE_RANGE_HZ.contains(&rate) {
-        return Err(RateError(rate));
+        return Err(SettingsError::Rate(rate));
     }
+    let [r1_m, r2_m, r3_m] = summary.proxy_radii_m;
+    let proxy = ProxySection { r1_m, r2_m, r3_m };
+    proxy.config(rate).validate()?;
     let mut scene = Scene::exp1();
     scene.name = summary.name.clone();
     scene.rates.control_hz = rate;
-    scene.proxy = ProxySection::default();
+    scene.proxy = proxy;
     let mut settings = NodeSettings::from_scene(&scene);
     settings.normal.structure = structure_from_wire(summary.normal);
     settings.tangential.structure = structure_from_wire(summary.tangential);
@@ -49,6 +58,7 @@ mod tests {
             control_rate_hz: scene.rates.control_hz,
             cloud_rate_hz: Some(scene.cloud.rate_hz),
             left_out: scene.left_out(),
+            proxy_radii_m: [scene.proxy.r1_m, scene.proxy.r2_m, scene.proxy.r3_m],
         }
     }
 
@@ -65,6 +75,32 @@ mod tests {
         }
         let wall = node_settings(&summary(&Scene::wall())).unwrap();
         assert_eq!(wall.tangential.structure, Structure::KelvinVoigt);
+    }
+
+    #[test]
+    fn the_telerobots_radii_are_used_and_checked() {
+        let mut scene = Scene::exp1();
+        scene.proxy = ProxySection {
+            r1_m: 0.001,
+            r2_m: 0.003,
+            r3_m: 0.012,
+        };
+        let settings = node_settings(&summary(&scene)).unwrap();
+        assert_eq!(
+            (
+                settings.proxy.r1_m,
+                settings.proxy.r2_m,
+                settings.proxy.r3_m
+            ),
+            (0.001, 0.003, 0.012)
+        );
+        let mut s = summary(&scene);
+        s.proxy_radii_m = [0.003, 0.001, 0.012];
+        assert_eq!(
+            node_settings(&s).unwrap_err().to_string(),
+            "the telerobot's contact detector: r1_m = 0.003, r2_m = 0.001, r3_m = 0.012: \
+             expected r1 < r2 < r3"
+        );
     }
 
     #[test]

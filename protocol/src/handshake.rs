@@ -121,5 +121,19 @@ fn check_scene(scene: &SceneSummary) -> Result<(), HandshakeError> {
     positive("control_rate_hz", scene.control_rate_hz)?;
     scene
         .cloud_rate_hz
-        .map_or(Ok(()), |r| positive("cloud_rate_hz", r))
+        .map_or(Ok(()), |r| positive("cloud_rate_hz", r))?;
+    // The contact detector's radii: positive and strictly increasing (r1 < r2 < r3).
+    const RADII: [&str; 3] = ["proxy_radii_m[0]", "proxy_radii_m[1]", "proxy_radii_m[2]"];
+    let mut below = 0.0;
+    for (field, value) in RADII.into_iter().zip(scene.proxy_radii_m) {
+        if !(value > below) {
+            return Err(HandshakeError::InvalidScene {
+                field,
+                value,
+                expected: "radii r1 < r2 < r3 in metres, each above 0 and the one before",
+            });
+        }
+        below = value;
+    }
+    Ok(())
 }

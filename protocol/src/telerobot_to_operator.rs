@@ -68,6 +68,10 @@ pub struct SceneSummary {
     pub cloud_rate_hz: Option<f64>,
     /// Human-readable names of the model terms the scene leaves out (e.g. `ground spring k1`).
     pub left_out: Vec<String>,
+    /// Radii `[r1, r2, r3]` of the telerobot's contact detector \[m\] (thesis appendix C). The
+    /// operator's local detector uses the same, so both make and break contact at the same
+    /// distance from the cloud.
+    pub proxy_radii_m: [f64; 3],
 }
 
 /// Refuses a `Hello`.
@@ -289,7 +293,8 @@ impl CheckFinite for Message {
 
 fn check_scene(s: &SceneSummary) -> Result<(), NonFinite> {
     finite::scalar("control_rate_hz", s.control_rate_hz)?;
-    finite::opt_scalar("cloud_rate_hz", s.cloud_rate_hz)
+    finite::opt_scalar("cloud_rate_hz", s.cloud_rate_hz)?;
+    finite::vector("proxy_radii_m", &s.proxy_radii_m)
 }
 
 fn check_parameters(p: &Parameters) -> Result<(), NonFinite> {

@@ -115,3 +115,26 @@ fn a_scene_without_a_positive_rate_is_rejected() {
         "invalid scene summary: cloud_rate_hz = 0, expected a positive rate in Hz"
     );
 }
+
+#[test]
+fn proxy_radii_out_of_order_or_not_positive_are_rejected() {
+    for (radii, field, value) in [
+        ([0.0, 0.006, 0.03], "proxy_radii_m[0]", "0"),
+        ([0.004, 0.004, 0.03], "proxy_radii_m[1]", "0.004"),
+        ([0.004, 0.006, 0.005], "proxy_radii_m[2]", "0.005"),
+        ([-0.004, 0.006, 0.03], "proxy_radii_m[0]", "-0.004"),
+    ] {
+        let mut w = welcome(PROTOCOL_VERSION);
+        w.scene.proxy_radii_m = radii;
+        assert_eq!(
+            check_welcome(&w).unwrap_err().to_string(),
+            format!(
+                "invalid scene summary: {field} = {value}, expected radii r1 < r2 < r3 in metres, \
+                 each above 0 and the one before"
+            )
+        );
+    }
+    let mut w = welcome(PROTOCOL_VERSION);
+    w.scene.proxy_radii_m = [0.001, 0.003, 0.012];
+    assert_eq!(check_welcome(&w), Ok(()));
+}

@@ -152,11 +152,12 @@ fn nan_is_rejected_in_every_float_field() {
             control_rate_hz: f64::MAX,
             cloud_rate_hz: Some(f64::MAX),
             left_out: vec![],
+            proxy_radii_m: [f64::MAX; 3],
         },
     });
     assert_eq!(
         every_float_is_checked(&welcome, t2o::encode, t2o::decode, &max, &nan),
-        2
+        5
     );
 }
 

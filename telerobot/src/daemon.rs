@@ -102,6 +102,7 @@ pub fn scene_summary(s: &Scene) -> SceneSummary {
         control_rate_hz: s.rates.control_hz,
         cloud_rate_hz: (s.cloud.source != CloudKind::None).then_some(s.cloud.rate_hz),
         left_out: s.left_out(),
+        proxy_radii_m: [s.proxy.r1_m, s.proxy.r2_m, s.proxy.r3_m],
     }
 }
 

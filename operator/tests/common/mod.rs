@@ -29,6 +29,7 @@ pub fn scene() -> SceneSummary {
         control_rate_hz: 1000.0,
         cloud_rate_hz: None,
         left_out: vec![],
+        proxy_radii_m: [0.004, 0.006, 0.03],
     }
 }
 

@@ -71,6 +71,7 @@ pub fn telerobot_samples() -> Vec<t2o::Message> {
                 control_rate_hz: 1000.0,
                 cloud_rate_hz: Some(30.0),
                 left_out: vec!["k1".into()],
+                proxy_radii_m: [0.5, 1.0, 2.0],
             },
         }),
         t2o::Message::Refused(Refused {
@@ -332,15 +333,27 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
         finite(),
         proptest::option::of(finite()),
         proptest::collection::vec(".{0,10}", 0..4),
+        [finite(), finite(), finite()],
     )
         .prop_map(
-            |(name, normal, tangential, control_rate_hz, cloud_rate_hz, left_out)| SceneSummary {
+            |(
                 name,
                 normal,
                 tangential,
                 control_rate_hz,
                 cloud_rate_hz,
                 left_out,
+                proxy_radii_m,
+            )| {
+                SceneSummary {
+                    name,
+                    normal,
+                    tangential,
+                    control_rate_hz,
+                    cloud_rate_hz,
+                    left_out,
+                    proxy_radii_m,
+                }
             },
         );
     let refusal = prop_oneof![
