@@ -152,8 +152,9 @@ pub struct Band {
     pub lo_hz: f64,
     /// Upper edge [Hz].
     pub hi_hz: f64,
-    /// RMS error in the band, % of the RMS measured force in the band.
-    pub rms_error_pct: f64,
+    /// RMS error in the band, % of the RMS measured force in the band; `None` (JSON `null`)
+    /// when nothing was rendered after the parameters first passed the gates.
+    pub rms_error_pct: Option<f64>,
 }
 
 /// Delay between a true contact change and the rendered one, on the command time axis [ms].
@@ -341,11 +342,7 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         .map(|(b, &(lo, hi))| Band {
             lo_hz: lo,
             hi_hz: hi,
-            rms_error_pct: if m2[b] > 0.0 {
-                100.0 * (e2[b] / m2[b]).sqrt()
-            } else {
-                0.0
-            },
+            rms_error_pct: (m2[b] > 0.0).then(|| 100.0 * (e2[b] / m2[b]).sqrt()),
         })
         .collect();
     let per_window = (1.0 / dt).round() as usize;

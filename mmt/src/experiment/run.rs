@@ -36,10 +36,17 @@ pub fn run(
         ..config.operator
     };
     let mut shadow = OperatorNode::new(settings.clone(), shadow_config, start)?;
-    let link = |seed_offset: u64| {
+    // Datagrams (commands, parameters, contact, state sync) may be lost, duplicated and
+    // reordered; clouds travel as the networked system sends them, one reliable stream per
+    // frame: delayed (and jittered), never lost. A static scene sends its one cloud once.
+    let link = |seed_offset: u64, datagrams: bool| {
         let ms = 1_000_000.0;
         let mut c = LinkConfig::delay((config.delay_ms * ms).round() as u64);
         c.jitter_ns = (config.jitter_ms * ms).round() as u64;
+        if !datagrams {
+            return Channel::<Vec<u8>>::new(c, config.seed.wrapping_add(seed_offset))
+                .map_err(|e| ExperimentError::Link(e.to_string()));
+        }
         if config.loss > 0.0 {
             c.loss = netem::Loss::Random {
                 probability: config.loss,
@@ -53,8 +60,9 @@ pub fn run(
         Channel::<Vec<u8>>::new(c, config.seed.wrapping_add(seed_offset))
             .map_err(|e| ExperimentError::Link(e.to_string()))
     };
-    let mut uplink = link(101)?;
-    let mut downlink = link(202)?;
+    let mut uplink = link(101, true)?;
+    let mut downlink = link(202, true)?;
+    let mut cloudlink = link(303, false)?;
     let mut camera = Camera::new(&config.scene, config.seed);
     let ticks = (config.seconds * 1e9 / period as f64).round() as usize;
     let mut series =
@@ -66,7 +74,10 @@ pub fn run(
     for k in 0..ticks {
         let now = k as i64 * period;
         // 1. Downlink arrivals.
-        while let Some(bytes) = downlink.recv_due(now as u64) {
+        while let Some(bytes) = cloudlink
+            .recv_due(now as u64)
+            .or_else(|| downlink.recv_due(now as u64))
+        {
             if let Ok(message) = down::decode(&bytes) {
                 if let Some(h) = message.header() {
                     operator.session().on_receive(h, now);
@@ -122,11 +133,15 @@ pub fn run(
         for m in messages {
             buf.clear();
             down::encode_into(m, &mut buf);
-            downlink.send(now as u64, buf.clone(), buf.len());
+            let link = match m {
+                down::Message::Cloud(_) => &mut cloudlink,
+                _ => &mut downlink,
+            };
+            link.send(now as u64, buf.clone(), buf.len());
         }
         if took_frame && let Some(shared) = telerobot.latest_cloud() {
             shared_clouds.push_back(shared);
-            // Frames lost on the link would leave their index here: keep the queue short.
+            // Frames in flight wait here (12 at 30 Hz over 400 ms); keep the queue bounded.
             while shared_clouds.len() > 64 {
                 shared_clouds.pop_front();
             }

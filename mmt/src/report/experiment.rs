@@ -44,7 +44,7 @@ pub fn table(r: &ExperimentReport) -> String {
     for b in &r.bands {
         row(
             &format!("  band {:.1}–{:.1} Hz", b.lo_hz, b.hi_hz),
-            pct(Some(b.rms_error_pct)),
+            pct(b.rms_error_pct),
             if b.hi_hz <= 0.3 {
                 "< 0.25 N, ~30 %"
             } else {
