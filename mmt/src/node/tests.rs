@@ -219,3 +219,39 @@ fn late_sync_replay_equals_an_on_time_sync() {
         );
     }
 }
+
+/// The telerobot holds still once no command has arrived for more than the 50 ms timeout, where
+/// the robot is, and follows again when commands return.
+#[test]
+fn the_robot_holds_after_50_ms_without_commands() {
+    use super::telerobot::{CommandSample, TelerobotNode};
+    const MS: i64 = 1_000_000;
+    let settings = NodeSettings::from_scene(&Scene::exp1());
+    assert_eq!(settings.command_timeout_ns, 50 * MS);
+    let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
+    let command = |t: i64, y: f64| CommandSample {
+        sample_time_ns: t,
+        position_m: [0.0, y, 0.01],
+        velocity_m_per_s: [0.0; 3],
+        received_ns: t,
+    };
+    let robot = [0.0, 0.5, 0.02];
+    let target = node.target(0, robot);
+    assert!(target.holding, "no command yet");
+    node.on_command(command(MS, 0.1));
+    for t in [MS, 20 * MS, 51 * MS] {
+        let target = node.target(t, robot);
+        assert!(!target.holding, "at {t} ns");
+        assert_eq!(target.position_m, [0.0, 0.1, 0.01]);
+    }
+    let target = node.target(51 * MS + 1, robot);
+    assert!(target.holding);
+    assert_eq!(target.position_m, robot);
+    assert_eq!(target.velocity_m_per_s, [0.0; 3]);
+    let moved = [0.0, 0.6, 0.02];
+    assert_eq!(node.target(80 * MS, moved).position_m, robot, "held where it stopped");
+    node.on_command(command(90 * MS, 0.2));
+    let target = node.target(90 * MS, moved);
+    assert!(!target.holding);
+    assert_eq!(target.position_m, [0.0, 0.2, 0.01]);
+}
