@@ -17,7 +17,7 @@ use tokio::sync::oneshot;
 use transport::clock::monotonic_ns;
 use transport::endpoint::{CertificateFailure, certificate_failure};
 use transport::framing;
-use transport::{Identity, LinkTuning, SERVER_NAME, TelerobotPin};
+use transport::{CloseCode, Identity, LinkTuning, SERVER_NAME, TelerobotPin};
 
 fn scene() -> SceneSummary {
     SceneSummary {
@@ -270,6 +270,49 @@ async fn a_second_operator_is_refused_while_one_is_in_control_and_accepted_after
     ));
     assert_eq!(tr.link.status().session(), 2);
     assert_eq!(tr.link.status().operator().as_deref(), Some("bob"));
+}
+
+/// An operator app that crashed and restarted (same certificate, old connection never closed)
+/// takes its session over at once instead of being refused as busy until the idle timeout; a
+/// different certificate is still refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_operator_in_control_connecting_again_replaces_its_old_connection() {
+    let (a, b) = (
+        Identity::generate(&["a"]).unwrap(),
+        Identity::generate(&["b"]).unwrap(),
+    );
+    let tr = start(&[&a, &b]);
+    let mut crashed = connect(&tr, &a).await.unwrap();
+    assert!(matches!(
+        crashed.hello("alice", PROTOCOL_VERSION).await,
+        t2o::Message::Welcome(_)
+    ));
+    assert_eq!(tr.link.status().session(), 1);
+    // The restarted app: same certificate, new endpoint; the old connection is still open.
+    let mut restarted = connect(&tr, &a).await.unwrap();
+    assert!(matches!(
+        restarted.hello("alice", PROTOCOL_VERSION).await,
+        t2o::Message::Welcome(_)
+    ));
+    let closed = crashed.conn.closed().await;
+    let quinn::ConnectionError::ApplicationClosed(close) = &closed else {
+        panic!("{closed:?}")
+    };
+    assert_eq!(close.error_code, CloseCode::Replaced.code());
+    assert_eq!(tr.link.status().session(), 2);
+    assert_eq!(tr.link.status().refused_busy(), 0);
+    restarted.command(1, 0.25);
+    let got = eventually(|| tr.link.next_command()).await;
+    assert_eq!(got.message.position_m[0], 0.25);
+    // Another operator is still refused while the restarted one is in control.
+    let mut other = connect(&tr, &b).await.unwrap();
+    let answer = other.hello("bob", PROTOCOL_VERSION).await;
+    assert!(
+        matches!(&answer, t2o::Message::Refused(r) if r.reason == Refusal::Busy {
+            controlling_operator: "alice".into()
+        }),
+        "{answer:?}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -40,6 +40,9 @@ pub enum CloseCode {
     Shutdown,
     /// The peer broke the control-stream protocol (oversized frame, unexpected message).
     ProtocolViolation,
+    /// A newer connection with the same certificate took the session over (the operator app
+    /// restarted before the telerobot noticed the old connection was gone).
+    Replaced,
 }
 
 impl CloseCode {
@@ -50,6 +53,7 @@ impl CloseCode {
             CloseCode::Refused => 1,
             CloseCode::Shutdown => 2,
             CloseCode::ProtocolViolation => 3,
+            CloseCode::Replaced => 4,
         })
     }
 
@@ -60,6 +64,7 @@ impl CloseCode {
             CloseCode::Refused,
             CloseCode::Shutdown,
             CloseCode::ProtocolViolation,
+            CloseCode::Replaced,
         ]
         .into_iter()
         .find(|c| c.code() == code)
@@ -196,6 +201,7 @@ mod tests {
             CloseCode::Refused,
             CloseCode::Shutdown,
             CloseCode::ProtocolViolation,
+            CloseCode::Replaced,
         ] {
             assert_eq!(CloseCode::from_code(c.code()), Some(c));
         }

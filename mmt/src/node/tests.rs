@@ -249,7 +249,11 @@ fn the_robot_holds_after_50_ms_without_commands() {
     assert_eq!(target.position_m, robot);
     assert_eq!(target.velocity_m_per_s, [0.0; 3]);
     let moved = [0.0, 0.6, 0.02];
-    assert_eq!(node.target(80 * MS, moved).position_m, robot, "held where it stopped");
+    assert_eq!(
+        node.target(80 * MS, moved).position_m,
+        robot,
+        "held where it stopped"
+    );
     node.on_command(command(90 * MS, 0.2));
     let target = node.target(90 * MS, moved);
     assert!(!target.holding);

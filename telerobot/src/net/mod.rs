@@ -7,6 +7,9 @@
 //!   `Hello`; the answer is `Welcome { scene }`, or `Refused { VersionMismatch }` naming both
 //!   versions, or `Refused { Busy { controlling_operator } }` while another is in control. A
 //!   refused connection is then closed with [`transport::CloseCode::Refused`] and the reason.
+//!   A connection presenting the certificate of the operator in control is that operator again
+//!   (its app restarted before the old connection timed out): it takes over, and the old
+//!   connection is closed with [`transport::CloseCode::Replaced`].
 //! - In a session: `Command` datagrams (the newest of their direction, or reordered ones, which
 //!   the node's playout buffer still orders) go to the loop's command queue stamped with their
 //!   receipt time; `Ping`s are answered at once with a `Pong`; everything else is garbage,
@@ -132,9 +135,24 @@ pub async fn serve(
 /// only the session in control listens to.
 #[derive(Debug)]
 struct Slot {
-    holder: Option<String>,
+    holder: Option<Holder>,
     bells: Option<Bells>,
 }
+
+/// The operator in control.
+#[derive(Debug)]
+struct Holder {
+    /// The name from its `Hello`.
+    name: String,
+    /// Its certificate (DER), as the TLS handshake presented it.
+    certificate: Option<Vec<u8>>,
+    /// Its connection, closed if a newer one with the same certificate takes over.
+    connection: quinn::Connection,
+}
+
+/// How long a connection presenting the controlling operator's own certificate waits for the old
+/// session to end after closing it (the old session's task notices at once; this is a bound).
+const TAKEOVER_WAIT: Duration = Duration::from_secs(2);
 
 /// The network side of the loop's two outboxes.
 #[derive(Debug)]
@@ -150,19 +168,71 @@ struct Control {
 }
 
 impl Control {
-    /// Takes the slot for `operator`, or says who holds it.
-    fn claim(slot: &Arc<Mutex<Slot>>, operator: &str) -> Result<Control, String> {
-        let mut s = slot.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(holder) = &s.holder {
-            return Err(holder.clone());
+    /// Takes the slot for `operator` on `connection`, or says who holds it.
+    ///
+    /// A connection presenting the same certificate as the operator in control is that operator
+    /// again — its app restarted, or reconnected before the telerobot noticed the old connection
+    /// was gone (which takes the idle timeout). It takes over: the old connection is closed with
+    /// [`CloseCode::Replaced`] and the slot is handed on once the old session has ended. Another
+    /// certificate is refused with the holder's name.
+    async fn claim(
+        slot: &Arc<Mutex<Slot>>,
+        operator: &str,
+        connection: &quinn::Connection,
+    ) -> Result<Control, String> {
+        let certificate = peer_certificate(connection);
+        let deadline = tokio::time::Instant::now() + TAKEOVER_WAIT;
+        let mut replacing = false;
+        loop {
+            {
+                let mut s = slot.lock().unwrap_or_else(PoisonError::into_inner);
+                match &s.holder {
+                    None => {
+                        let bells = s.bells.take().ok_or_else(String::new)?;
+                        s.holder = Some(Holder {
+                            name: operator.to_owned(),
+                            certificate,
+                            connection: connection.clone(),
+                        });
+                        return Ok(Control {
+                            slot: Arc::clone(slot),
+                            bells: Some(bells),
+                        });
+                    }
+                    Some(holder)
+                        if certificate.is_some()
+                            && holder.certificate == certificate
+                            && tokio::time::Instant::now() < deadline =>
+                    {
+                        if !replacing {
+                            replacing = true;
+                            tracing::info!(
+                                old = %holder.connection.remote_address(),
+                                new = %connection.remote_address(),
+                                operator,
+                                "the operator in control connected again: replacing its old connection"
+                            );
+                            holder.connection.close(
+                                CloseCode::Replaced.code(),
+                                b"replaced by a newer connection with the same certificate",
+                            );
+                        }
+                    }
+                    Some(holder) => return Err(holder.name.clone()),
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
         }
-        let bells = s.bells.take().ok_or_else(String::new)?;
-        s.holder = Some(operator.to_owned());
-        Ok(Control {
-            slot: Arc::clone(slot),
-            bells: Some(bells),
-        })
     }
+}
+
+/// The certificate the peer presented in the TLS handshake (DER), if any.
+fn peer_certificate(connection: &quinn::Connection) -> Option<Vec<u8>> {
+    let chain = connection
+        .peer_identity()?
+        .downcast::<Vec<CertificateDer<'static>>>()
+        .ok()?;
+    chain.first().map(|c| c.to_vec())
 }
 
 impl Drop for Control {

@@ -52,7 +52,7 @@ pub(super) async fn run(connection: Connection, context: &Context) {
         Err(refusal) => return refuse(&connection, send, refusal, context).await,
     };
     let operator = hello.operator_name;
-    let mut control = match Control::claim(&context.slot, &operator) {
+    let mut control = match Control::claim(&context.slot, &operator, &connection).await {
         Ok(control) => control,
         Err(controlling_operator) => {
             let refusal = Refusal::Busy {
