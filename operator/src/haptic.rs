@@ -29,7 +29,7 @@ use transport::Mailbox;
 
 use crate::device::{ForceRecord, HapticDevice};
 use crate::net::OperatorLink;
-use crate::safety::{ForceTick, SafetyLayer, SafetyStats};
+use crate::safety::{ForceTick, Model, SafetyLayer, SafetyStats};
 use crate::vec3;
 
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
@@ -179,13 +179,10 @@ impl HapticLoop {
             vec3::scale(self.device.measured_cv(), map.scale().get())
         };
         let out = self.node.step(now, position, velocity);
-        let params_age = state
-            .last_params_ns
-            .map(|t| Duration::from_nanos(u64::try_from(tick.started_ns - t).unwrap_or(0)));
         let force = self.safety.filter_force(&ForceTick {
             now: actual,
             measured_cp: measured,
-            params_age,
+            model: model_age(out.rendering, state.last_params_ns, tick.started_ns),
             force_n: out.force_n,
         });
         // A refused write faults the device, which then holds zero by itself.
@@ -222,6 +219,20 @@ impl HapticLoop {
     }
 }
 
+/// What the parameter-age rule sees: a model only while the node renders one (before the first
+/// parameters there is none, and nothing to be stale). Rendering without a known arrival time
+/// cannot happen (the node renders only after parameters this loop handed it) and counts as
+/// stale.
+fn model_age(rendering: bool, last_params_ns: Option<i64>, now_ns: i64) -> Model {
+    if !rendering {
+        return Model::None;
+    }
+    let params_age = last_params_ns.map_or(Duration::MAX, |t| {
+        Duration::from_nanos(u64::try_from(now_ns - t).unwrap_or(0))
+    });
+    Model::Rendering { params_age }
+}
+
 /// The loop's own bookkeeping.
 struct State {
     start_ns: i64,
@@ -230,4 +241,27 @@ struct State {
     parameters: Option<Parameters>,
     sessions: u64,
     ticks: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_model_is_never_stale_and_a_rendered_one_has_its_age() {
+        assert_eq!(model_age(false, None, 5), Model::None);
+        assert_eq!(model_age(false, Some(1), 5), Model::None);
+        assert_eq!(
+            model_age(true, Some(1_000), 3_000_000),
+            Model::Rendering {
+                params_age: Duration::from_nanos(2_999_000)
+            }
+        );
+        assert_eq!(
+            model_age(true, None, 5),
+            Model::Rendering {
+                params_age: Duration::MAX
+            }
+        );
+    }
 }
