@@ -168,6 +168,11 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     tracing::info!(scene = %welcome.scene.name, rate_hz = welcome.scene.control_rate_hz,
         normal = ?welcome.scene.normal, tangential = ?welcome.scene.tangential,
         "session open: rendering the telerobot's scene");
+    // The loop runs at the telerobot's control rate: the overrun rule measures against it.
+    let period = Duration::from_nanos(u64::try_from(settings.period_ns).unwrap_or(0));
+    safety.set_loop_period(period)?;
+    tracing::info!(period = ?period, allowance = ?config.safety.watchdog.max_overrun,
+        "loop-overrun watchdog set to the session's tick period");
     device.update(Duration::ZERO)?;
     let start = safety.command_position(device.measured_cp(), false);
     let node = Box::new(OperatorNode::new(settings.clone(), config.node, start)?);

@@ -263,6 +263,53 @@ fn stale_parameters_fade_out_and_fresh_ones_fade_back_in() {
     assert_eq!(s.stats().stale_params.episodes, 1);
 }
 
+/// Ticks at `period` for 2 s with one tick `late` beyond its deadline half-way (if any);
+/// returns the overrun episodes.
+fn overruns_at(period: Duration, late: Option<Duration>) -> u64 {
+    let mut s = layer(SafetyConfig::default());
+    s.set_loop_period(period).unwrap();
+    assert_eq!(s.loop_period(), period);
+    let ticks = (2.0 / period.as_secs_f64()) as u32;
+    let mut now = Duration::ZERO;
+    for k in 0..ticks {
+        now += period;
+        if k == ticks / 2 {
+            now += late.unwrap_or_default();
+        }
+        s.filter_force(&ForceTick {
+            now,
+            ..tick(0, [1.0, 0.0, 0.0])
+        });
+    }
+    s.stats().loop_overrun.episodes
+}
+
+/// Regression: the overrun rule measured against a fixed 1 ms whatever the control rate, so a
+/// 200 Hz loop overran on every tick and a 2 kHz one could lose 2.5 ms unnoticed.
+#[test]
+fn the_overrun_rule_follows_the_loop_period() {
+    let allowance = WatchdogConfig::default().max_overrun;
+    for hz in [200u64, 2000] {
+        let period = Duration::from_nanos(1_000_000_000 / hz);
+        assert_eq!(overruns_at(period, None), 0, "{hz} Hz healthy");
+        // Late by just under and just over the allowance.
+        let under = allowance - Duration::from_micros(10);
+        let over = allowance + Duration::from_micros(10);
+        assert_eq!(
+            overruns_at(period, Some(under)),
+            0,
+            "{hz} Hz within the allowance"
+        );
+        assert_eq!(
+            overruns_at(period, Some(over)),
+            1,
+            "{hz} Hz beyond the allowance"
+        );
+    }
+    let mut s = layer(SafetyConfig::default());
+    assert!(s.set_loop_period(Duration::ZERO).is_err());
+}
+
 /// Regression: every healthy session started with a stale-params trip, because the telerobot
 /// sends parameters only after the first contact and "none yet" counted as stale — and the fade
 /// also switched the workspace spring off.
