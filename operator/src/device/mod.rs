@@ -237,6 +237,8 @@ pub trait HapticDevice: Send {
     fn trip(&mut self, now: Duration, reason: &str);
     /// Statistics of the forces written (for reports).
     fn force_record(&self) -> &ForceRecord;
+    /// Times the device entered [`OperatingState::Faulted`] (for reports).
+    fn fault_count(&self) -> u64;
 }
 
 /// The driver interface a backend implements. Keep it small: the state machine, the ramp and the
@@ -314,6 +316,13 @@ pub enum DeviceError {
         code: i32,
         /// `dhdErrorGetLastStr()`.
         message: String,
+    },
+    /// The device switched its forces off by itself (its firmware watchdog, its velocity guard, a
+    /// button, a disconnection), while the app had them on.
+    #[error("the device switched its forces off: {cause}")]
+    ForcesOff {
+        /// Why, as the device reported it.
+        cause: String,
     },
     /// The device is faulted; [`HapticDevice::reset`] it first.
     #[error("device is faulted ({cause}); reset it before enabling")]

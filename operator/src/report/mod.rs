@@ -25,7 +25,7 @@ use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
 use rt::{LatencyReport, LinkReport, Quantiles, TimingReport};
 use serde::Serialize;
 
-use crate::device::ForceRecord;
+use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
 use crate::helper::Recording;
 use crate::safety::SafetyStats;
@@ -68,6 +68,14 @@ pub struct NetworkedReport {
     pub device_forces: ForceRecord,
     /// The device.
     pub device: String,
+    /// The device's operating state at the end of the run (after the loop disabled it:
+    /// `Disabled`, or `Faulted` if it faulted).
+    pub device_state: OperatingState,
+    /// Times the device faulted: servo watchdog, SDK error, forces cut by the device itself
+    /// (firmware watchdog, velocity guard), a refused enable.
+    pub device_faults: u64,
+    /// The fault the device ended in, if any: its cause and when.
+    pub device_fault: Option<String>,
     /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
     /// The telerobot daemon's summary (the demo, which runs it).
@@ -200,6 +208,12 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         safety: end.safety,
         device_forces: end.force_record,
         device: facts.device.clone(),
+        device_state: end.device.operating_state(),
+        device_faults: end.device.fault_count(),
+        device_fault: end
+            .device
+            .fault()
+            .map(|f| format!("{} (at {:.3} s)", f.cause, f.at.as_secs_f64())),
         wall_seconds: facts.wall_seconds,
         telerobot: None,
         shim: None,
@@ -413,6 +427,13 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             s.workspace.episodes
         ),
     );
+    row(
+        "device state, faults",
+        format!("{:?} / {}", r.device_state, r.device_faults),
+    );
+    if let Some(f) = &r.device_fault {
+        row("  fault", f.clone());
+    }
     let p = &s.passivity;
     row(
         "passivity: min energy / dissipated / ticks",

@@ -193,6 +193,13 @@ fn trip_faults_from_any_state() {
         r.dev.fault().unwrap().cause,
         FaultCause::Requested("operator pressed stop".into())
     );
+    assert_eq!(r.dev.fault_count(), 1);
+    // Tripping a faulted device is not a second fault; a fault after a reset is.
+    r.dev.trip(ms(6), "again");
+    assert_eq!(r.dev.fault_count(), 1);
+    r.dev.reset(ms(7)).unwrap();
+    r.dev.trip(ms(8), "third time");
+    assert_eq!(r.dev.fault_count(), 2);
 }
 
 #[test]
