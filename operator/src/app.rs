@@ -174,7 +174,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     tracing::info!(period = ?period, allowance = ?config.safety.watchdog.max_overrun,
         "loop-overrun watchdog set to the session's tick period");
     device.update(Duration::ZERO)?;
-    let start = safety.command_position(device.measured_cp(), false);
+    let start = safety.command_position(device.measured_cp(), device.clutch());
     let node = Box::new(OperatorNode::new(settings.clone(), config.node, start)?);
 
     let exchange = std::sync::Arc::new(Exchange::default());

@@ -94,6 +94,15 @@ impl Double {
         }
     }
 
+    fn set_button(&self, index: c_int, pressed: bool) {
+        // SAFETY: signature as exported by fdsdk-double.
+        unsafe {
+            self.lib
+                .get::<unsafe extern "C" fn(c_int, c_int)>("fdsdk_double_set_button")
+                .unwrap()(index, c_int::from(pressed));
+        }
+    }
+
     fn set_velocity_threshold(&self, v: c_uint) {
         // SAFETY: signature as exported by fdsdk-double.
         unsafe {
@@ -192,6 +201,36 @@ fn reads_position_and_velocity() {
     dev.update(ms(0)).unwrap();
     assert_eq!(dev.measured_cp(), [0.01, -0.02, 0.03]);
     assert_eq!(dev.measured_cv(), [0.1, 0.0, -0.1]);
+    assert!(!dev.clutch());
+    let log = d.log();
+    assert_eq!(
+        log[log.len() - 4..],
+        [
+            "dhdGetStatus 0",
+            "dhdGetPosition 0",
+            "dhdGetLinearVelocity 0",
+            "dhdGetButton 0"
+        ]
+    );
+}
+
+#[test]
+fn the_handle_button_is_the_clutch() {
+    let d = Double::new(1);
+    let mut dev = ManagedDevice::new(
+        OmegaBackend::open_with_env(&config(), None).unwrap(),
+        ManagedConfig::default(),
+    )
+    .unwrap();
+    d.set_button(1, true);
+    dev.update(ms(0)).unwrap();
+    assert!(!dev.clutch(), "another button is not the clutch");
+    d.set_button(0, true);
+    dev.update(ms(1)).unwrap();
+    assert!(dev.clutch());
+    d.set_button(0, false);
+    dev.update(ms(2)).unwrap();
+    assert!(!dev.clutch());
 }
 
 #[test]

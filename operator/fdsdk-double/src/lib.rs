@@ -13,6 +13,7 @@
 //! Control (test-only symbols, prefixed `fdsdk_double_`): [`fdsdk_double_reset`],
 //! [`fdsdk_double_set_position`], [`fdsdk_double_set_velocity_threshold`],
 //! [`fdsdk_double_force_off`] (the device cuts its forces: watchdog, velocity guard, …),
+//! [`fdsdk_double_set_button`],
 //! [`fdsdk_double_fail`], [`fdsdk_double_log`]. The state is global to the loaded library; tests
 //! that share one copy must serialise.
 //!
@@ -40,6 +41,8 @@ struct State {
     forces_on: bool,
     brake: bool,
     force_off_cause: c_int,
+    /// Button bitmap (bit i = button i pressed).
+    buttons: u32,
     failing: Vec<String>,
     last_error: &'static CStr,
     log: Vec<String>,
@@ -54,6 +57,7 @@ static STATE: Mutex<State> = Mutex::new(State {
     forces_on: false,
     brake: false,
     force_off_cause: 0,
+    buttons: 0,
     failing: Vec::new(),
     last_error: c"no error",
     log: Vec::new(),
@@ -114,6 +118,7 @@ pub extern "C" fn fdsdk_double_reset(devices: c_int) {
     s.forces_on = false;
     s.brake = false;
     s.force_off_cause = 0;
+    s.buttons = 0;
     s.failing.clear();
     s.last_error = c"no error";
     s.log.clear();
@@ -142,6 +147,20 @@ pub extern "C" fn fdsdk_double_force_off(cause: c_int) {
     s.forces_on = false;
     s.force_off_cause = cause;
     s.brake = cause == FORCEOFF_VELOCITY;
+}
+
+/// Presses (`pressed` ≠ 0) or releases button `index` (0 to 15).
+#[unsafe(no_mangle)]
+pub extern "C" fn fdsdk_double_set_button(index: c_int, pressed: c_int) {
+    let Some(bit) = u32::try_from(index).ok().filter(|i| *i < 16) else {
+        return;
+    };
+    let mut s = state();
+    if pressed != 0 {
+        s.buttons |= 1 << bit;
+    } else {
+        s.buttons &= !(1 << bit);
+    }
 }
 
 /// Makes every later call of the SDK function `name` return −1.
@@ -316,6 +335,24 @@ pub extern "C" fn dhdEnableForce(val: c_uchar, id: c_char) -> c_int {
         }
     }
     r
+}
+
+/// `int dhdGetButton(int index, char ID)`: `DHD_ON` (1) if pressed, `DHD_OFF` (0) if not, −1 for
+/// an index outside 0 to 15 (`DHD_MAX_BUTTONS`).
+#[unsafe(no_mangle)]
+pub extern "C" fn dhdGetButton(index: c_int, id: c_char) -> c_int {
+    let mut s = state();
+    let r = s.call_id("dhdGetButton", id, format!("dhdGetButton {index}"));
+    if r < 0 {
+        return r;
+    }
+    match u32::try_from(index).ok().filter(|i| *i < 16) {
+        Some(bit) => c_int::from(s.buttons & (1 << bit) != 0),
+        None => {
+            s.last_error = c"invalid button index";
+            -1
+        }
+    }
 }
 
 /// `int dhdGetStatus(int status[DHD_MAX_STATUS], char ID)`: writes `DHD_MAX_STATUS` (16) ints:

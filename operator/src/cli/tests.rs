@@ -130,6 +130,36 @@ fn bad_watchdog_is_refused() {
     assert!(e.contains("31.875 ms"), "{e}");
 }
 
+fn run_args(extra: &[&str]) -> RunArgs {
+    let mut argv = vec!["operator", "run", "--device", "scripted:hold"];
+    argv.extend_from_slice(extra);
+    let Command::Run(args) = Cli::try_parse_from(argv).unwrap().command else {
+        panic!("not run")
+    };
+    *args
+}
+
+#[test]
+fn position_scale_is_checked_and_applied() {
+    assert_eq!(run_args(&[]).safety().unwrap().position_scale, 1.0);
+    let args = run_args(&["--position-scale", "0.25"]);
+    assert_eq!(args.safety().unwrap().position_scale, 0.25);
+    for (bad, shown) in [("0", "0"), ("-2", "-2"), ("nan", "NaN"), ("inf", "inf")] {
+        let flag = format!("--position-scale={bad}");
+        let args = run_args(&[&flag]);
+        // Refused before the device is opened or the network is looked at.
+        let e = run(&args, Shutdown::new(), &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "--position-scale {shown}: expected a finite number > 0"
+            )),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn loop_and_demo_flags_are_checked() {
     let cli = Cli::try_parse_from(["operator", "demo"]).unwrap();

@@ -209,6 +209,10 @@ impl<B: Backend> HapticDevice for ManagedDevice<B> {
         self.reading.velocity_m_per_s
     }
 
+    fn clutch(&self) -> bool {
+        self.reading.clutch
+    }
+
     fn servo_cf(&mut self, now: Duration, force_n: Vec3) -> Result<(), DeviceError> {
         let previous = self.last_servo.replace(now);
         match self.state {

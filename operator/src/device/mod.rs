@@ -202,6 +202,9 @@ pub struct DeviceReading {
     pub position_m: Vec3,
     /// Velocity of the handle [m/s].
     pub velocity_m_per_s: Vec3,
+    /// The clutch input is held: SpaceMouse button 0, the omega's button 0. Backends without
+    /// buttons (scripted, replay) never press it.
+    pub clutch: bool,
 }
 
 /// A haptic device as the haptic loop sees it. Implemented by [`ManagedDevice`] over any
@@ -219,6 +222,8 @@ pub trait HapticDevice: Send {
     fn measured_cp(&self) -> Vec3;
     /// Velocity of the latest reading [m/s] (CRTK `measured_cv`, translation only).
     fn measured_cv(&self) -> Vec3;
+    /// The clutch input of the latest reading (true = held).
+    fn clutch(&self) -> bool;
     /// Commands a force [N] (CRTK `servo_cf`). Reaches the device only while enabled, multiplied
     /// by the enable ramp; zero is written otherwise. Non-finite forces are written as zero.
     /// Call it every tick, also while disabled (it feeds the watchdogs).

@@ -25,6 +25,7 @@ impl Backend for Mock {
         Ok(DeviceReading {
             position_m: [0.01, 0.0, 0.0],
             velocity_m_per_s: [0.0; 3],
+            clutch: false,
         })
     }
     fn write_force(&mut self, f: Vec3) -> Result<(), DeviceError> {

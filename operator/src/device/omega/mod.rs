@@ -11,7 +11,8 @@
 //!   `dhdSetForce(0)`;
 //! - **disable**: `dhdSetForce(0)` → `dhdEnableForce(off)`;
 //! - **drop**: `dhdSetForce(0)` → `dhdEnableForce(off)` → `dhdClose`;
-//! - **read**, once per tick: `dhdGetStatus` → `dhdGetPosition` → `dhdGetLinearVelocity`. While
+//! - **read**, once per tick: `dhdGetStatus` → `dhdGetPosition` → `dhdGetLinearVelocity` →
+//!   `dhdGetButton(0)` (the clutch: the button on the handle). While
 //!   the app has forces on, a status with forces off (the SDK's watchdog, the velocity guard's
 //!   brake, the force button, a disconnection) is a [`DeviceError::ForcesOff`] naming the cause,
 //!   which faults the device ([`super::ManagedDevice`] writes zero and switches forces off).
@@ -37,6 +38,8 @@ use crate::vec3::{self, Vec3};
 
 /// `DHD_DEVICE_OMEGA3` … `DHD_DEVICE_OMEGA7_LEFT` (dhdc.h).
 const OMEGA_FAMILY: std::ops::RangeInclusive<i32> = 33..=37;
+/// The button that clutches: 0, the button on the omega's handle (the only one of an omega.3/6).
+const CLUTCH_BUTTON: std::ffi::c_int = 0;
 /// One watchdog unit of the DHD firmware.
 pub const WATCHDOG_UNIT: Duration = Duration::from_micros(125);
 
@@ -181,6 +184,7 @@ impl Backend for OmegaBackend {
         Ok(DeviceReading {
             position_m: self.sdk.position(self.id)?,
             velocity_m_per_s: self.sdk.linear_velocity(self.id)?,
+            clutch: self.sdk.button(self.id, CLUTCH_BUTTON)?,
         })
     }
 

@@ -49,6 +49,7 @@ pub const REQUIRED_SYMBOLS: &[&str] = &[
     "dhdGetVelocityThreshold",
     "dhdSetVelocityThreshold",
     "dhdGetStatus",
+    "dhdGetButton",
     "dhdErrorGetLastStr",
 ];
 
@@ -217,6 +218,7 @@ pub struct Dhd {
     get_velocity_threshold: unsafe extern "C" fn(*mut c_uint, c_char) -> c_int,
     set_velocity_threshold: unsafe extern "C" fn(c_uint, c_char) -> c_int,
     get_status: unsafe extern "C" fn(*mut c_int, c_char) -> c_int,
+    get_button: unsafe extern "C" fn(c_int, c_char) -> c_int,
     error_get_last_str: unsafe extern "C" fn() -> *const c_char,
     /// Keeps the code behind the pointers mapped; never used after the pointers.
     _library: Library,
@@ -292,6 +294,7 @@ impl Dhd {
                 symbol(&lib, "dhdGetVelocityThreshold", m),
                 symbol(&lib, "dhdSetVelocityThreshold", m),
                 symbol(&lib, "dhdGetStatus", m),
+                symbol(&lib, "dhdGetButton", m),
                 symbol(&lib, "dhdErrorGetLastStr", m),
             )
         };
@@ -312,6 +315,7 @@ impl Dhd {
                 Some(get_velocity_threshold),
                 Some(set_velocity_threshold),
                 Some(get_status),
+                Some(get_button),
                 Some(error_get_last_str),
             ) => Ok(Self {
                 get_device_count,
@@ -329,6 +333,7 @@ impl Dhd {
                 get_velocity_threshold,
                 set_velocity_threshold,
                 get_status,
+                get_button,
                 error_get_last_str,
                 _library: lib,
                 path: shown,
@@ -500,6 +505,13 @@ impl Dhd {
         let r = unsafe { (self.get_status)(s.as_mut_ptr(), id) };
         self.check("dhdGetStatus", r)?;
         Ok(Status(s))
+    }
+
+    /// `dhdGetButton(index, id)`: whether button `index` is pressed (`DHD_ON`).
+    pub fn button(&self, id: c_char, index: c_int) -> Result<bool, DeviceError> {
+        // SAFETY: plain value arguments.
+        let r = unsafe { (self.get_button)(index, id) };
+        Ok(self.check("dhdGetButton", r)? != 0)
     }
 
     /// `dhdSetVelocityThreshold(val, id)`: above it the device brakes.

@@ -119,6 +119,7 @@ fn writer_output_replays_exactly() {
             &DeviceReading {
                 position_m: p,
                 velocity_m_per_s: v,
+                clutch: false,
             },
         )
         .unwrap();
@@ -137,6 +138,7 @@ fn writer_refuses_non_finite() {
     let bad = DeviceReading {
         position_m: [f64::NAN, 0.0, 0.0],
         velocity_m_per_s: [0.0; 3],
+        clutch: false,
     };
     assert!(w.write(0.0, &bad).is_err());
 }
