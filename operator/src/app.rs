@@ -100,17 +100,19 @@ pub enum RunError {
     #[error("stopped before a session with the telerobot opened")]
     Stopped,
     /// A runtime, socket or thread could not be created.
-    #[error("{what}: {source}")]
+    /// (The OS error is in the message, not the `source()`, so that printed error chains do not
+    /// repeat it.)
+    #[error("{what}: {error}")]
     Io {
         /// What was being created.
         what: &'static str,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
 }
 
 fn io(what: &'static str) -> impl FnOnce(std::io::Error) -> RunError {
-    move |source| RunError::Io { what, source }
+    move |error| RunError::Io { what, error }
 }
 
 /// A finished run: its report and the time series behind it.
@@ -223,7 +225,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     let (Ok(end), Ok(recording)) = (end, recording) else {
         return Err(RunError::Io {
             what: "the haptic loop",
-            source: std::io::Error::other("a loop thread panicked"),
+            error: std::io::Error::other("a loop thread panicked"),
         });
     };
     if let Err(e) = net_result {

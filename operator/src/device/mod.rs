@@ -301,13 +301,14 @@ pub enum DeviceError {
         /// What was looked for and where.
         detail: String,
     },
-    /// The HID layer failed.
-    #[error("HID: {what}: {source}")]
+    /// The HID layer failed. (The hidapi error is in the message, not the `source()`, so that
+    /// printed error chains do not repeat it.)
+    #[error("HID: {what}: {error}")]
     Hid {
         /// What was being done.
         what: String,
         /// The hidapi error.
-        source: hidapi::HidError,
+        error: hidapi::HidError,
     },
     /// The Force Dimension SDK could not be loaded or is incomplete.
     #[error(transparent)]

@@ -106,6 +106,22 @@ fn missing_file_names_it() {
     assert!(e.contains("/nonexistent/run.csv"), "{e}");
 }
 
+/// Regression: the app prints error chains (`{:#}`), and the OS error was both in the message
+/// and the source, so it was printed twice.
+#[test]
+fn missing_file_error_says_the_os_error_once() {
+    let e = ReplayTrajectory::load(Path::new("/nonexistent/run.csv")).unwrap_err();
+    let chain = format!(
+        "{:#}",
+        anyhow::Error::from(crate::device::DeviceError::from(e))
+    );
+    assert_eq!(chain.matches("No such file").count(), 1, "{chain}");
+    assert_eq!(
+        chain,
+        "cannot read replay file /nonexistent/run.csv: No such file or directory (os error 2)"
+    );
+}
+
 #[test]
 fn writer_output_replays_exactly() {
     let readings = [

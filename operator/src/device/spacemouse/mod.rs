@@ -92,9 +92,9 @@ impl ReportSource for HidReportSource {
     fn read_report(&mut self, buf: &mut [u8]) -> Result<usize, DeviceError> {
         self.device
             .read_timeout(buf, 0)
-            .map_err(|source| DeviceError::Hid {
+            .map_err(|error| DeviceError::Hid {
                 what: "reading a SpaceMouse report".into(),
-                source,
+                error,
             })
     }
 }
@@ -156,9 +156,9 @@ impl SpaceMouseBackend<HidReportSource> {
             info.product_id(),
             info.path().to_string_lossy()
         );
-        let device = info.open_device(&api).map_err(|source| DeviceError::Hid {
+        let device = info.open_device(&api).map_err(|error| DeviceError::Hid {
             what: format!("opening {name}"),
-            source,
+            error,
         })?;
         Self::new(HidReportSource { device }, config, name)
     }
@@ -339,9 +339,9 @@ pub fn list_hid() -> Result<(Vec<HidEntry>, usize), DeviceError> {
 
 /// The HID API with the device list enumerated.
 fn hid_api() -> Result<hidapi::HidApi, DeviceError> {
-    hidapi::HidApi::new().map_err(|source| DeviceError::Hid {
+    hidapi::HidApi::new().map_err(|error| DeviceError::Hid {
         what: "enumerating HID devices".into(),
-        source,
+        error,
     })
 }
 
