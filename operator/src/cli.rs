@@ -219,8 +219,8 @@ fn render_into(
     writeln!(s, "\nBackends:")?;
     writeln!(
         s,
-        "  {:<15} {:<14} {:>9} {:>13} {:<20} notes",
-        "--device", "force output", "max force", "max stiffness", "workspace"
+        "  {:<15} {:<14} {:>9} {:>13} {:>13} {:<20} notes",
+        "--device", "force output", "max force", "max stiffness", "max damping", "workspace"
     )?;
     let omega = DeviceCapabilities::omega7("omega");
     let sm = SpaceMouseConfig::default();
@@ -255,15 +255,16 @@ fn render_into(
         ),
     ];
     for (name, force, caps, ws, note) in rows {
-        let (f, k) = caps.map_or(("-".into(), "-".into()), |c| {
+        let (f, k, b) = caps.map_or(("-".into(), "-".into(), "-".into()), |c| {
             (
                 format!("{} N", c.max_force_n),
                 format!("{} N/m", c.max_stiffness_n_per_m),
+                format!("{} N·s/m", c.max_damping_n_s_per_m),
             )
         });
         writeln!(
             s,
-            "  {name:<15} {force:<14} {f:>9} {k:>13} {:<20} {note}",
+            "  {name:<15} {force:<14} {f:>9} {k:>13} {b:>13} {:<20} {note}",
             ws.describe()
         )?;
     }
@@ -323,11 +324,16 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         )?;
         return Ok(ExitCode::from(2));
     };
-    writeln!(
-        out,
+    let line = format!(
         "network: telerobot {} pinned to {}, as '{}'",
         net.connect, net.telerobot_cert_source, net.operator_name
-    )?;
+    );
+    // With --json, stdout is the report alone (it must parse as JSON): the line goes to stderr.
+    if args.run.json {
+        eprintln!("{line}");
+    } else {
+        writeln!(out, "{line}")?;
+    }
     run::run_cmd(
         &args.run,
         net,

@@ -36,6 +36,18 @@ fn devices_report_on_a_bare_machine_says_so() {
     assert!(
         text.contains("12 N") && text.contains("5000 N/m") && text.contains("sphere r = 0.075 m")
     );
+    // The damping each backend offers (the passivity controller's limit).
+    assert!(text.contains("max damping"), "{text}");
+    let omega = text
+        .lines()
+        .find(|l| l.contains("omega           yes"))
+        .unwrap();
+    assert!(omega.contains("30 N·s/m"), "{omega}");
+    let spacemouse = text
+        .lines()
+        .find(|l| l.contains("spacemouse      NO"))
+        .unwrap();
+    assert!(!spacemouse.contains("N·s/m"), "{spacemouse}");
 }
 
 #[test]
@@ -158,6 +170,44 @@ fn position_scale_is_checked_and_applied() {
             "{e}"
         );
     }
+}
+
+/// Regression: `operator run --json` printed a "network: …" line on stdout before the JSON.
+#[test]
+fn run_json_keeps_stdout_for_the_json() {
+    let dir = std::env::temp_dir().join(format!("mmt-cli-json-{}", std::process::id()));
+    transport::Identity::generate_files(&dir, "operator", &["operator"]).unwrap();
+    let (_, telerobot_crt, _) =
+        transport::Identity::generate_files(&dir, "telerobot", &["telerobot"]).unwrap();
+    let identity = dir.to_str().unwrap().to_owned();
+    let trust = telerobot_crt.to_str().unwrap().to_owned();
+    let net = [
+        "--connect",
+        "127.0.0.1:9",
+        "--identity",
+        &identity,
+        "--trust",
+        &trust,
+    ];
+    for json in [true, false] {
+        let mut argv = net.to_vec();
+        if json {
+            argv.push("--json");
+        }
+        let args = run_args(&argv);
+        // Stopped before any session: the run ends at once, with nothing to report.
+        let stop = Shutdown::new();
+        stop.trigger();
+        let mut out = Vec::new();
+        assert!(run(&args, stop, &mut out).is_err());
+        let text = String::from_utf8(out).unwrap();
+        assert_eq!(
+            text.contains("network: telerobot 127.0.0.1:9"),
+            !json,
+            "{text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
