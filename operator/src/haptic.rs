@@ -24,6 +24,7 @@ use std::time::Duration;
 
 use mmt::contact::CloudIndex;
 use mmt::node::operator::{OperatorNode, OperatorStats};
+use mmt::render::RendererStats;
 use protocol::telerobot_to_operator::{Message, Parameters, SurfaceFrame};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
@@ -31,7 +32,7 @@ use transport::Mailbox;
 use crate::device::{ForceRecord, HapticDevice};
 use crate::net::OperatorLink;
 use crate::safety::{ForceTick, Model, SafetyLayer, SafetyStats};
-use crate::vec3::{self, Vec3};
+use crate::vec3::Vec3;
 
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;
@@ -98,6 +99,9 @@ pub struct LoopEnd {
     pub force_record: ForceRecord,
     /// The last node's counters.
     pub node: OperatorStats,
+    /// The last node's renderer counters: the normal axis first (if the model has one), then
+    /// each rendered tangential axis.
+    pub renderers: Vec<RendererStats>,
     /// Ticks run (the last tick's number + 1).
     pub ticks: u64,
     /// The newest surface frame the telerobot reported (the report's axes).
@@ -141,6 +145,7 @@ impl HapticLoop {
             safety: self.safety.stats(),
             force_record: *self.device.force_record(),
             node: self.node.stats(),
+            renderers: self.node.renderer_stats(),
             device: self.device,
             ticks: state.ticks,
             frame: state.frame,
@@ -226,8 +231,8 @@ pub(crate) struct Sample {
 }
 
 /// Reads the device at `now` and maps the reading through the safety layer: the device's clutch
-/// input and the position scale. A device that fails faults itself (forces off, logged once);
-/// the last reading is kept.
+/// input and the position scale; non-finite readings guarded. A device that fails faults itself
+/// (forces off, logged once); the last reading is kept.
 pub(crate) fn sample_device(
     device: &mut dyn HapticDevice,
     safety: &mut SafetyLayer,
@@ -236,12 +241,7 @@ pub(crate) fn sample_device(
     let _ = device.update(now);
     let measured_cp = device.measured_cp();
     let position = safety.command_position(measured_cp, device.clutch());
-    let map = safety.position_map();
-    let velocity = if map.clutched() {
-        vec3::ZERO
-    } else {
-        vec3::scale(device.measured_cv(), map.scale().get())
-    };
+    let velocity = safety.command_velocity(device.measured_cv());
     Sample {
         measured_cp,
         position,
@@ -349,6 +349,24 @@ mod tests {
         assert!(close(&vx, &[0.2, 0.2, 0.0, 0.0, 0.2, 0.2]), "{vx:?}");
         assert_eq!(samples[3].measured_cp, [0.03, 0.0, 0.0]);
         assert_eq!(safety.stats().clutch.episodes, 1);
+    }
+
+    /// Regression: a non-finite velocity from the device went to the node unguarded.
+    #[test]
+    fn a_non_finite_velocity_from_the_device_is_zeroed_and_counted() {
+        let mut dev = device(vec![
+            reading(0.01, 0.1, false),
+            reading(0.01, f64::NAN, false),
+            reading(0.01, f64::INFINITY, false),
+            reading(0.01, 0.1, false),
+        ]);
+        let mut safety = SafetyLayer::new(dev.spec(), &SafetyConfig::default()).unwrap();
+        let vx: Vec<f64> = (0..4u64)
+            .map(|k| sample_device(&mut dev, &mut safety, Duration::from_millis(k)).velocity[0])
+            .collect();
+        assert_eq!(vx, [0.1, 0.0, 0.0, 0.1]);
+        let t = safety.stats().non_finite_velocity;
+        assert_eq!((t.episodes, t.ticks), (1, 2));
     }
 
     #[test]

@@ -378,6 +378,7 @@ fn report_of(device: Box<dyn HapticDevice>) -> operator::report::NetworkedReport
         device,
         safety: Default::default(),
         node: Default::default(),
+        renderers: Vec::new(),
         ticks: 0,
         frame: None,
         parameters: None,

@@ -18,6 +18,7 @@ use std::fmt::Write as _;
 use mmt::experiment::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
 use mmt::node::gated_from_wire;
 use mmt::node::operator::OperatorOutput;
+use mmt::render::RendererStats;
 use mmt::scene::Scene;
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
@@ -64,6 +65,11 @@ pub struct NetworkedReport {
     pub clouds: (u64, u64),
     /// What the safety layer did.
     pub safety: SafetyStats,
+    /// The operator's renderers (the last session's node): the normal axis first (if the model
+    /// has one), then each rendered tangential axis. `unresolved_ticks` counts the
+    /// renderability gate acting (a raised mass or the reduced model), `clipped_ticks` the
+    /// stiffness clipped by Colgate's bound.
+    pub renderers: Vec<RendererStats>,
     /// The forces written to the device.
     pub device_forces: ForceRecord,
     /// The device.
@@ -206,6 +212,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         sessions: end.sessions,
         clouds: rec.clouds,
         safety: end.safety,
+        renderers: end.renderers.clone(),
         device_forces: end.force_record,
         device: facts.device.clone(),
         device_state: end.device.operating_state(),
@@ -416,6 +423,15 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             us(&s.lateness.quantiles()),
         );
     }
+    let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
+    row(
+        "renderer ticks: unresolved (gate) / clipped",
+        format!(
+            "{} / {}",
+            sum(|s| s.unresolved_ticks),
+            sum(|s| s.clipped_ticks)
+        ),
+    );
     let s = &r.safety;
     row(
         "safety episodes: watchdog / rate / max / workspace",
@@ -426,6 +442,26 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             s.saturated.episodes,
             s.workspace.episodes
         ),
+    );
+    row(
+        "  loop overrun / stale parameters / clutch",
+        format!(
+            "{} / {} / {}",
+            s.loop_overrun.episodes, s.stale_params.episodes, s.clutch.episodes
+        ),
+    );
+    row(
+        "  non-finite force / position / velocity",
+        format!(
+            "{} / {} / {}",
+            s.non_finite_force.episodes,
+            s.non_finite_position.episodes,
+            s.non_finite_velocity.episodes
+        ),
+    );
+    row(
+        "  position-scale changes refused",
+        s.scale_rejections.to_string(),
     );
     row(
         "device state, faults",
@@ -468,3 +504,6 @@ pub fn files(
     }
     Ok(files)
 }
+
+#[cfg(test)]
+mod tests;

@@ -2,8 +2,11 @@
 //! It runs inside the 1 kHz loop: no allocation, no locks, no per-tick logging (each rule logs a
 //! `tracing` event when it starts and stops acting, and counts into [`SafetyStats`]).
 //!
-//! Position path ([`SafetyLayer::command_position`]): clutch and position scaling, translation
-//! only, never a jump ([`position`]). A non-finite measured position holds the last command.
+//! Position path ([`SafetyLayer::command_position`], [`SafetyLayer::command_velocity`]): clutch
+//! and position scaling, translation only, never a jump ([`position`]). A non-finite measured
+//! position holds the last command; a non-finite measured velocity is replaced by zero (the
+//! velocity feeds the renderer's damping: a NaN there would make the force NaN, and a held
+//! velocity would keep damping a motion that may have stopped). Both are counted.
 //!
 //! Force path ([`SafetyLayer::filter_force`]), in this order, and why:
 //! 1. **Non-finite → zero.** A NaN/inf component means the renderer is broken; its last finite
@@ -293,6 +296,22 @@ impl SafetyLayer {
             "clutch engaged; commanded position held",
         );
         commanded
+    }
+
+    /// Velocity path, once per tick after [`Self::command_position`]: the commanded velocity
+    /// [m/s] for the measured device velocity — scaled, zero while clutched, and zero when not
+    /// finite (counted, logged once per episode).
+    pub fn command_velocity(&mut self, measured_cv: Vec3) -> Vec3 {
+        let finite = vec3::is_finite(measured_cv);
+        log_edge(
+            self.stats.non_finite_velocity.record(!finite),
+            "non-finite velocity",
+            "measured velocity not finite; zero velocity commanded",
+        );
+        if !finite || self.position.clutched() {
+            return vec3::ZERO;
+        }
+        vec3::scale(measured_cv, self.position.scale().get())
     }
 
     /// Force path, once per tick: the force to hand to `servo_cf` [N]. See the module docs.

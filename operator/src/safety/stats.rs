@@ -55,6 +55,8 @@ pub struct SafetyStats {
     pub non_finite_force: TripCount,
     /// Measured position had a NaN or infinite component (commanded position held).
     pub non_finite_position: TripCount,
+    /// Measured velocity had a NaN or infinite component (zero velocity commanded).
+    pub non_finite_velocity: TripCount,
     /// Force magnitude limited to the device maximum.
     pub saturated: TripCount,
     /// Force change limited by the rate limit.
