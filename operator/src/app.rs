@@ -100,17 +100,19 @@ pub enum RunError {
     #[error("stopped before a session with the telerobot opened")]
     Stopped,
     /// A runtime, socket or thread could not be created.
-    #[error("{what}: {source}")]
+    /// (The OS error is in the message, not the `source()`, so that printed error chains do not
+    /// repeat it.)
+    #[error("{what}: {error}")]
     Io {
         /// What was being created.
         what: &'static str,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
 }
 
 fn io(what: &'static str) -> impl FnOnce(std::io::Error) -> RunError {
-    move |source| RunError::Io { what, source }
+    move |error| RunError::Io { what, error }
 }
 
 /// A finished run: its report and the time series behind it.
@@ -168,8 +170,13 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     tracing::info!(scene = %welcome.scene.name, rate_hz = welcome.scene.control_rate_hz,
         normal = ?welcome.scene.normal, tangential = ?welcome.scene.tangential,
         "session open: rendering the telerobot's scene");
+    // The loop runs at the telerobot's control rate: the overrun rule measures against it.
+    let period = Duration::from_nanos(u64::try_from(settings.period_ns).unwrap_or(0));
+    safety.set_loop_period(period)?;
+    tracing::info!(period = ?period, allowance = ?config.safety.watchdog.max_overrun,
+        "loop-overrun watchdog set to the session's tick period");
     device.update(Duration::ZERO)?;
-    let start = safety.command_position(device.measured_cp(), false);
+    let start = safety.command_position(device.measured_cp(), device.clutch());
     let node = Box::new(OperatorNode::new(settings.clone(), config.node, start)?);
 
     let exchange = std::sync::Arc::new(Exchange::default());
@@ -218,7 +225,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     let (Ok(end), Ok(recording)) = (end, recording) else {
         return Err(RunError::Io {
             what: "the haptic loop",
-            source: std::io::Error::other("a loop thread panicked"),
+            error: std::io::Error::other("a loop thread panicked"),
         });
     };
     if let Err(e) = net_result {

@@ -6,7 +6,7 @@
 //!   Works with no device and no SDK (says so, exits 0).
 //! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
 //! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
-//!   [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
+//!   [--position-scale F] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
 //!   the network flags it only opens the device and says what it is (exits 2).
 //! - `operator demo [--delay-ms 400] [--seconds 20] [--out DIR] [--json]` — the whole system in
 //!   one process ([`crate::demo`]).
@@ -30,6 +30,7 @@ use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_
 use crate::device::{
     DeviceCapabilities, DeviceError, DeviceSpec, ManagedConfig, OpenOptions, open_device,
 };
+use crate::safety::SafetyConfig;
 
 /// Operator side of the model-mediated teleoperation system.
 #[derive(Debug, Parser)]
@@ -46,7 +47,7 @@ pub enum Command {
     /// List the haptic devices and backends this machine offers.
     Devices(DevicesArgs),
     /// Run the operator app against a telerobot: haptic loop, network, report.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// The whole system in one process over loopback (telerobot, netem shim, scripted operator).
     Demo(DemoArgs),
     /// Make the operator's certificate and key (DIR/operator.crt, DIR/operator.key).
@@ -106,6 +107,10 @@ pub struct RunArgs {
     /// SpaceMouse speed at full deflection [m/s].
     #[arg(long, value_name = "M_PER_S", default_value_t = 0.1)]
     pub spacemouse_speed: f64,
+    /// Commanded metres per device metre (translation only; > 0). Below 1 the tool moves less
+    /// than the hand, for fine work; the device's clutch button repositions the hand.
+    #[arg(long, value_name = "F", default_value_t = 1.0)]
+    pub position_scale: f64,
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
@@ -115,6 +120,30 @@ pub struct RunArgs {
     /// Run length, loop and report options.
     #[command(flatten)]
     pub run: LoopArgs,
+}
+
+/// Why `operator run`'s options are refused.
+#[derive(Debug, thiserror::Error)]
+pub enum RunArgsError {
+    /// `--position-scale` zero, negative or not finite.
+    #[error(
+        "--position-scale {0}: expected a finite number > 0 (commanded metres per device metre; 1 = one-to-one)"
+    )]
+    PositionScale(f64),
+}
+
+impl RunArgs {
+    /// The safety settings these options give.
+    pub fn safety(&self) -> Result<SafetyConfig, RunArgsError> {
+        let scale = self.position_scale;
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(RunArgsError::PositionScale(scale));
+        }
+        Ok(SafetyConfig {
+            position_scale: scale,
+            ..SafetyConfig::default()
+        })
+    }
 }
 
 /// `operator devices`: prints what this machine offers. Always succeeds unless output fails.
@@ -190,8 +219,8 @@ fn render_into(
     writeln!(s, "\nBackends:")?;
     writeln!(
         s,
-        "  {:<15} {:<14} {:>9} {:>13} {:<20} notes",
-        "--device", "force output", "max force", "max stiffness", "workspace"
+        "  {:<15} {:<14} {:>9} {:>13} {:>13} {:<20} notes",
+        "--device", "force output", "max force", "max stiffness", "max damping", "workspace"
     )?;
     let omega = DeviceCapabilities::omega7("omega");
     let sm = SpaceMouseConfig::default();
@@ -226,15 +255,16 @@ fn render_into(
         ),
     ];
     for (name, force, caps, ws, note) in rows {
-        let (f, k) = caps.map_or(("-".into(), "-".into()), |c| {
+        let (f, k, b) = caps.map_or(("-".into(), "-".into(), "-".into()), |c| {
             (
                 format!("{} N", c.max_force_n),
                 format!("{} N/m", c.max_stiffness_n_per_m),
+                format!("{} N·s/m", c.max_damping_n_s_per_m),
             )
         });
         writeln!(
             s,
-            "  {name:<15} {force:<14} {f:>9} {k:>13} {:<20} {note}",
+            "  {name:<15} {force:<14} {f:>9} {k:>13} {b:>13} {:<20} {note}",
             ws.describe()
         )?;
     }
@@ -260,6 +290,7 @@ fn render_into(
 /// `--seconds` or `shutdown` and prints the report; without them, opens the device, says what it
 /// is and stops (exit code 2: nothing to run).
 pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+    let safety = args.safety()?;
     let net = args.net.config()?;
     let options = OpenOptions {
         scripted_length_s: args.run.seconds,
@@ -293,12 +324,25 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         )?;
         return Ok(ExitCode::from(2));
     };
-    writeln!(
-        out,
+    let line = format!(
         "network: telerobot {} pinned to {}, as '{}'",
         net.connect, net.telerobot_cert_source, net.operator_name
+    );
+    // With --json, stdout is the report alone (it must parse as JSON): the line goes to stderr.
+    if args.run.json {
+        eprintln!("{line}");
+    } else {
+        writeln!(out, "{line}")?;
+    }
+    run::run_cmd(
+        &args.run,
+        net,
+        args.device.clone(),
+        options,
+        safety,
+        shutdown,
+        out,
     )?;
-    run::run_cmd(&args.run, net, args.device.clone(), options, shutdown, out)?;
     Ok(ExitCode::SUCCESS)
 }
 

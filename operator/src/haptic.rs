@@ -8,7 +8,8 @@
 //!    in, the old one handed back to be dropped off this thread;
 //! 2. the newest `Parameters`, `Contact` and `StateSync` of this session go to the node
 //!    (latest-value slots, lock-free); the newest cloud index (built by the helper thread);
-//! 3. the device is read; the safety layer maps its position (clutch, scale);
+//! 3. the device is read; the safety layer maps its position (the device's clutch input, the
+//!    position scale) — [`sample_device`];
 //! 4. the node renders the force from its local model and makes the command — with the link
 //!    stalled it keeps rendering from the last model it has;
 //! 5. the safety layer shapes the force (saturation, workspace, watchdog, rate) for `servo_cf`;
@@ -23,14 +24,15 @@ use std::time::Duration;
 
 use mmt::contact::CloudIndex;
 use mmt::node::operator::{OperatorNode, OperatorStats};
+use mmt::render::RendererStats;
 use protocol::telerobot_to_operator::{Message, Parameters, SurfaceFrame};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
 use crate::device::{ForceRecord, HapticDevice};
 use crate::net::OperatorLink;
-use crate::safety::{ForceTick, SafetyLayer, SafetyStats};
-use crate::vec3;
+use crate::safety::{ForceTick, Model, SafetyLayer, SafetyStats};
+use crate::vec3::Vec3;
 
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;
@@ -97,6 +99,9 @@ pub struct LoopEnd {
     pub force_record: ForceRecord,
     /// The last node's counters.
     pub node: OperatorStats,
+    /// The last node's renderer counters: the normal axis first (if the model has one), then
+    /// each rendered tangential axis.
+    pub renderers: Vec<RendererStats>,
     /// Ticks run (the last tick's number + 1).
     pub ticks: u64,
     /// The newest surface frame the telerobot reported (the report's axes).
@@ -140,6 +145,7 @@ impl HapticLoop {
             safety: self.safety.stats(),
             force_record: *self.device.force_record(),
             node: self.node.stats(),
+            renderers: self.node.renderer_stats(),
             device: self.device,
             ticks: state.ticks,
             frame: state.frame,
@@ -167,25 +173,16 @@ impl HapticLoop {
         {
             self.node.set_cloud(index);
         }
-        // A device that fails faults itself (forces off, logged once); the node keeps the last
-        // reading.
-        let _ = self.device.update(actual);
-        let measured = self.device.measured_cp();
-        let position = self.safety.command_position(measured, false);
-        let map = self.safety.position_map();
-        let velocity = if map.clutched() {
-            vec3::ZERO
-        } else {
-            vec3::scale(self.device.measured_cv(), map.scale().get())
-        };
+        let Sample {
+            measured_cp: measured,
+            position,
+            velocity,
+        } = sample_device(self.device.as_mut(), &mut self.safety, actual);
         let out = self.node.step(now, position, velocity);
-        let params_age = state
-            .last_params_ns
-            .map(|t| Duration::from_nanos(u64::try_from(tick.started_ns - t).unwrap_or(0)));
         let force = self.safety.filter_force(&ForceTick {
             now: actual,
             measured_cp: measured,
-            params_age,
+            model: model_age(out.rendering, state.last_params_ns, tick.started_ns),
             force_n: out.force_n,
         });
         // A refused write faults the device, which then holds zero by itself.
@@ -222,6 +219,50 @@ impl HapticLoop {
     }
 }
 
+/// One tick's device sample, through the safety layer's position path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Sample {
+    /// The device's measured position [m] (device coordinates), for the force path.
+    pub(crate) measured_cp: Vec3,
+    /// The commanded position [m]: clutch and scale applied.
+    pub(crate) position: Vec3,
+    /// The commanded velocity [m/s]: scaled, zero while clutched.
+    pub(crate) velocity: Vec3,
+}
+
+/// Reads the device at `now` and maps the reading through the safety layer: the device's clutch
+/// input and the position scale; non-finite readings guarded. A device that fails faults itself
+/// (forces off, logged once); the last reading is kept.
+pub(crate) fn sample_device(
+    device: &mut dyn HapticDevice,
+    safety: &mut SafetyLayer,
+    now: Duration,
+) -> Sample {
+    let _ = device.update(now);
+    let measured_cp = device.measured_cp();
+    let position = safety.command_position(measured_cp, device.clutch());
+    let velocity = safety.command_velocity(device.measured_cv());
+    Sample {
+        measured_cp,
+        position,
+        velocity,
+    }
+}
+
+/// What the parameter-age rule sees: a model only while the node renders one (before the first
+/// parameters there is none, and nothing to be stale). Rendering without a known arrival time
+/// cannot happen (the node renders only after parameters this loop handed it) and counts as
+/// stale.
+fn model_age(rendering: bool, last_params_ns: Option<i64>, now_ns: i64) -> Model {
+    if !rendering {
+        return Model::None;
+    }
+    let params_age = last_params_ns.map_or(Duration::MAX, |t| {
+        Duration::from_nanos(u64::try_from(now_ns - t).unwrap_or(0))
+    });
+    Model::Rendering { params_age }
+}
+
 /// The loop's own bookkeeping.
 struct State {
     start_ns: i64,
@@ -230,4 +271,119 @@ struct State {
     parameters: Option<Parameters>,
     sessions: u64,
     ticks: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::{
+        Backend, DeviceCapabilities, DeviceError, DeviceReading, ManagedConfig, ManagedDevice,
+    };
+    use crate::safety::SafetyConfig;
+
+    /// Plays readings, one per `read`.
+    struct Readings {
+        caps: DeviceCapabilities,
+        readings: std::vec::IntoIter<DeviceReading>,
+    }
+
+    impl Backend for Readings {
+        fn capabilities(&self) -> &DeviceCapabilities {
+            &self.caps
+        }
+        fn read(&mut self, _now: Duration) -> Result<DeviceReading, DeviceError> {
+            Ok(self.readings.next().unwrap_or_default())
+        }
+        fn write_force(&mut self, _force_n: Vec3) -> Result<(), DeviceError> {
+            Ok(())
+        }
+        fn set_force_enabled(&mut self, _on: bool) -> Result<(), DeviceError> {
+            Ok(())
+        }
+    }
+
+    fn device(readings: Vec<DeviceReading>) -> ManagedDevice<Readings> {
+        let backend = Readings {
+            caps: DeviceCapabilities::omega7("test"),
+            readings: readings.into_iter(),
+        };
+        ManagedDevice::new(backend, ManagedConfig::default()).unwrap()
+    }
+
+    fn reading(x: f64, vx: f64, clutch: bool) -> DeviceReading {
+        DeviceReading {
+            position_m: [x, 0.0, 0.0],
+            velocity_m_per_s: [vx, 0.0, 0.0],
+            clutch,
+        }
+    }
+
+    /// Regression: the loop always passed "not clutched" and never applied a scale other than 1.
+    #[test]
+    fn the_devices_clutch_and_the_position_scale_reach_the_command() {
+        // The hand moves +x by 10 mm per tick at 0.1 m/s; the clutch is held on ticks 2 and 3.
+        let clutch = [false, false, true, true, false, false];
+        let readings = clutch
+            .iter()
+            .enumerate()
+            .map(|(k, c)| reading(0.01 * k as f64, 0.1, *c))
+            .collect();
+        let mut dev = device(readings);
+        let mut safety = SafetyLayer::new(
+            dev.spec(),
+            &SafetyConfig {
+                position_scale: 2.0,
+                ..SafetyConfig::default()
+            },
+        )
+        .unwrap();
+        let samples: Vec<Sample> = (0..clutch.len() as u64)
+            .map(|k| sample_device(&mut dev, &mut safety, Duration::from_millis(k)))
+            .collect();
+        let x: Vec<f64> = samples.iter().map(|s| s.position[0]).collect();
+        let vx: Vec<f64> = samples.iter().map(|s| s.velocity[0]).collect();
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-12);
+        // Scaled ×2; held while clutched; after release it continues from the held position
+        // (no jump), again at twice the hand's motion.
+        assert!(close(&x, &[0.0, 0.02, 0.02, 0.02, 0.02, 0.04]), "{x:?}");
+        assert!(close(&vx, &[0.2, 0.2, 0.0, 0.0, 0.2, 0.2]), "{vx:?}");
+        assert_eq!(samples[3].measured_cp, [0.03, 0.0, 0.0]);
+        assert_eq!(safety.stats().clutch.episodes, 1);
+    }
+
+    /// Regression: a non-finite velocity from the device went to the node unguarded.
+    #[test]
+    fn a_non_finite_velocity_from_the_device_is_zeroed_and_counted() {
+        let mut dev = device(vec![
+            reading(0.01, 0.1, false),
+            reading(0.01, f64::NAN, false),
+            reading(0.01, f64::INFINITY, false),
+            reading(0.01, 0.1, false),
+        ]);
+        let mut safety = SafetyLayer::new(dev.spec(), &SafetyConfig::default()).unwrap();
+        let vx: Vec<f64> = (0..4u64)
+            .map(|k| sample_device(&mut dev, &mut safety, Duration::from_millis(k)).velocity[0])
+            .collect();
+        assert_eq!(vx, [0.1, 0.0, 0.0, 0.1]);
+        let t = safety.stats().non_finite_velocity;
+        assert_eq!((t.episodes, t.ticks), (1, 2));
+    }
+
+    #[test]
+    fn no_model_is_never_stale_and_a_rendered_one_has_its_age() {
+        assert_eq!(model_age(false, None, 5), Model::None);
+        assert_eq!(model_age(false, Some(1), 5), Model::None);
+        assert_eq!(
+            model_age(true, Some(1_000), 3_000_000),
+            Model::Rendering {
+                params_age: Duration::from_nanos(2_999_000)
+            }
+        );
+        assert_eq!(
+            model_age(true, None, 5),
+            Model::Rendering {
+                params_age: Duration::MAX
+            }
+        );
+    }
 }

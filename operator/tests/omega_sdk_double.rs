@@ -84,6 +84,25 @@ impl Double {
         }
     }
 
+    /// The device cuts its forces with `DHD_FORCEOFF_*` cause `cause`.
+    fn force_off(&self, cause: c_int) {
+        // SAFETY: signature as exported by fdsdk-double.
+        unsafe {
+            self.lib
+                .get::<unsafe extern "C" fn(c_int)>("fdsdk_double_force_off")
+                .unwrap()(cause);
+        }
+    }
+
+    fn set_button(&self, index: c_int, pressed: bool) {
+        // SAFETY: signature as exported by fdsdk-double.
+        unsafe {
+            self.lib
+                .get::<unsafe extern "C" fn(c_int, c_int)>("fdsdk_double_set_button")
+                .unwrap()(index, c_int::from(pressed));
+        }
+    }
+
     fn set_velocity_threshold(&self, v: c_uint) {
         // SAFETY: signature as exported by fdsdk-double.
         unsafe {
@@ -182,6 +201,36 @@ fn reads_position_and_velocity() {
     dev.update(ms(0)).unwrap();
     assert_eq!(dev.measured_cp(), [0.01, -0.02, 0.03]);
     assert_eq!(dev.measured_cv(), [0.1, 0.0, -0.1]);
+    assert!(!dev.clutch());
+    let log = d.log();
+    assert_eq!(
+        log[log.len() - 4..],
+        [
+            "dhdGetStatus 0",
+            "dhdGetPosition 0",
+            "dhdGetLinearVelocity 0",
+            "dhdGetButton 0"
+        ]
+    );
+}
+
+#[test]
+fn the_handle_button_is_the_clutch() {
+    let d = Double::new(1);
+    let mut dev = ManagedDevice::new(
+        OmegaBackend::open_with_env(&config(), None).unwrap(),
+        ManagedConfig::default(),
+    )
+    .unwrap();
+    d.set_button(1, true);
+    dev.update(ms(0)).unwrap();
+    assert!(!dev.clutch(), "another button is not the clutch");
+    d.set_button(0, true);
+    dev.update(ms(1)).unwrap();
+    assert!(dev.clutch());
+    d.set_button(0, false);
+    dev.update(ms(2)).unwrap();
+    assert!(!dev.clutch());
 }
 
 #[test]
@@ -303,4 +352,99 @@ fn missing_library_names_it_the_search_path_and_the_variable() {
         );
         assert!(e.contains("MMT_FD_SDK_LIB"), "{e}");
     }
+}
+
+/// The report of a run whose loop ended with `device`.
+fn report_of(device: Box<dyn HapticDevice>) -> operator::report::NetworkedReport {
+    use operator::report::{self, RunFacts};
+    let facts = RunFacts {
+        experiment: "networked".into(),
+        scene: "exp1".into(),
+        left_out: Vec::new(),
+        device: "omega".into(),
+        seed: 0,
+        set_delay_ms: None,
+        truth: None,
+        start_ns: 0,
+        period_ns: 1_000_000,
+        final_offset_ns: None,
+        link: Default::default(),
+        measurements_overwritten: 0,
+        timing: Default::default(),
+        wall_seconds: 0.0,
+    };
+    let end = operator::haptic::LoopEnd {
+        force_record: *device.force_record(),
+        device,
+        safety: Default::default(),
+        node: Default::default(),
+        renderers: Vec::new(),
+        ticks: 0,
+        frame: None,
+        parameters: None,
+        sessions: 1,
+    };
+    report::build(&facts, &Default::default(), &end).1
+}
+
+/// The device cuts its forces by itself while the app has them on: the backend faults with the
+/// cause, zero is written and forces switched off, and the run report counts the fault.
+#[test]
+fn forces_cut_by_the_sdk_watchdog_or_velocity_guard_fault_the_device_and_are_reported() {
+    for (cause, words) in [(3, "watchdog"), (2, "velocity guard")] {
+        let d = Double::new(1);
+        let mut dev = ManagedDevice::new(
+            OmegaBackend::open_with_env(&config(), None).unwrap(),
+            ManagedConfig::default(),
+        )
+        .unwrap();
+        dev.enable(ms(0)).unwrap();
+        dev.update(ms(1)).unwrap();
+        dev.servo_cf(ms(1), [1.0, 0.0, 0.0]).unwrap();
+        assert_eq!(dev.operating_state(), OperatingState::Enabled);
+        d.force_off(cause);
+        let e = dev.update(ms(2)).unwrap_err().to_string();
+        assert!(
+            e.contains("switched its forces off") && e.contains(words),
+            "{e}"
+        );
+        assert_eq!(dev.operating_state(), OperatingState::Faulted);
+        let log = d.log();
+        assert_eq!(
+            log[log.len() - 3..],
+            ["dhdGetStatus 0", "dhdSetForce 0 0 0", "dhdEnableForce 0"]
+        );
+        // Faulted: only zero is written from now on.
+        dev.servo_cf(ms(3), [2.0, 0.0, 0.0]).unwrap();
+        assert_eq!(d.log().last().unwrap(), "dhdSetForce 0 0 0");
+        assert_eq!(dev.fault_count(), 1);
+
+        let r = report_of(Box::new(dev));
+        assert_eq!(r.device_faults, 1);
+        assert_eq!(r.device_state, OperatingState::Faulted);
+        assert!(r.device_fault.as_deref().unwrap().contains(words));
+        let json = serde_json::to_value(&r).unwrap();
+        assert_eq!(json["device_faults"], 1);
+        assert_eq!(json["device_state"], "Faulted");
+        let table = operator::report::table(&r);
+        assert!(table.contains("device state, faults"), "{table}");
+        assert!(table.contains("Faulted / 1"), "{table}");
+    }
+}
+
+#[test]
+fn forces_off_while_disabled_is_no_fault() {
+    let d = Double::new(1);
+    let mut dev = ManagedDevice::new(
+        OmegaBackend::open_with_env(&config(), None).unwrap(),
+        ManagedConfig::default(),
+    )
+    .unwrap();
+    d.force_off(3);
+    dev.update(ms(1)).unwrap();
+    assert_eq!(dev.operating_state(), OperatingState::Disabled);
+    // Enabling clears the cut; a healthy enabled read passes.
+    dev.enable(ms(2)).unwrap();
+    dev.update(ms(3)).unwrap();
+    assert_eq!(dev.operating_state(), OperatingState::Enabled);
 }

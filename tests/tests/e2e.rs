@@ -42,6 +42,8 @@ fn delay_is_reproduced(delay_ms: f64) {
     assert_eq!((r.sessions, summary.sessions), (1, 1));
     assert!(r.link.received > 5000, "{:?}", r.link);
     assert!(summary.last.node.commands > 5000, "{:?}", summary.last);
+    // A healthy session: no model before the first contact is not "stale parameters".
+    assert_eq!(r.safety.stale_params.episodes, 0, "{:?}", r.safety);
 }
 
 #[test]

@@ -12,6 +12,8 @@
 //!
 //! Control (test-only symbols, prefixed `fdsdk_double_`): [`fdsdk_double_reset`],
 //! [`fdsdk_double_set_position`], [`fdsdk_double_set_velocity_threshold`],
+//! [`fdsdk_double_force_off`] (the device cuts its forces: watchdog, velocity guard, …),
+//! [`fdsdk_double_set_button`],
 //! [`fdsdk_double_fail`], [`fdsdk_double_log`]. The state is global to the loaded library; tests
 //! that share one copy must serialise.
 //!
@@ -24,6 +26,10 @@ use std::sync::{Mutex, MutexGuard};
 
 /// `DHD_DEVICE_OMEGA7_RIGHT`.
 const OMEGA7_RIGHT: c_int = 35;
+/// `DHD_MAX_STATUS` of `dhdc.h` 3.17.5: the ints `dhdGetStatus` writes.
+const MAX_STATUS: usize = 16;
+/// `DHD_FORCEOFF_VELOCITY`: the velocity guard, which also applies the brakes.
+const FORCEOFF_VELOCITY: c_int = 2;
 
 struct State {
     devices: c_int,
@@ -31,6 +37,12 @@ struct State {
     position: [f64; 3],
     velocity: [f64; 3],
     velocity_threshold: c_uint,
+    /// Forces on (`dhdEnableForce`), and not cut since.
+    forces_on: bool,
+    brake: bool,
+    force_off_cause: c_int,
+    /// Button bitmap (bit i = button i pressed).
+    buttons: u32,
     failing: Vec<String>,
     last_error: &'static CStr,
     log: Vec<String>,
@@ -42,6 +54,10 @@ static STATE: Mutex<State> = Mutex::new(State {
     position: [0.0; 3],
     velocity: [0.0; 3],
     velocity_threshold: 40,
+    forces_on: false,
+    brake: false,
+    force_off_cause: 0,
+    buttons: 0,
     failing: Vec::new(),
     last_error: c"no error",
     log: Vec::new(),
@@ -99,6 +115,10 @@ pub extern "C" fn fdsdk_double_reset(devices: c_int) {
     s.position = [0.0; 3];
     s.velocity = [0.0; 3];
     s.velocity_threshold = 40;
+    s.forces_on = false;
+    s.brake = false;
+    s.force_off_cause = 0;
+    s.buttons = 0;
     s.failing.clear();
     s.last_error = c"no error";
     s.log.clear();
@@ -116,6 +136,31 @@ pub extern "C" fn fdsdk_double_set_position(x: f64, y: f64, z: f64, vx: f64, vy:
 #[unsafe(no_mangle)]
 pub extern "C" fn fdsdk_double_set_velocity_threshold(v: c_uint) {
     state().velocity_threshold = v;
+}
+
+/// The device switches its forces off by itself with `DHD_FORCEOFF_*` cause `cause`
+/// (3 = watchdog, 2 = velocity guard, which also sets the brake status), as the firmware does.
+/// `dhdEnableForce(1)` clears it.
+#[unsafe(no_mangle)]
+pub extern "C" fn fdsdk_double_force_off(cause: c_int) {
+    let mut s = state();
+    s.forces_on = false;
+    s.force_off_cause = cause;
+    s.brake = cause == FORCEOFF_VELOCITY;
+}
+
+/// Presses (`pressed` ≠ 0) or releases button `index` (0 to 15).
+#[unsafe(no_mangle)]
+pub extern "C" fn fdsdk_double_set_button(index: c_int, pressed: c_int) {
+    let Some(bit) = u32::try_from(index).ok().filter(|i| *i < 16) else {
+        return;
+    };
+    let mut s = state();
+    if pressed != 0 {
+        s.buttons |= 1 << bit;
+    } else {
+        s.buttons &= !(1 << bit);
+    }
 }
 
 /// Makes every later call of the SDK function `name` return −1.
@@ -278,7 +323,59 @@ pub extern "C" fn dhdSetForce(fx: f64, fy: f64, fz: f64, id: c_char) -> c_int {
 /// `int dhdEnableForce(uchar val, char ID)`.
 #[unsafe(no_mangle)]
 pub extern "C" fn dhdEnableForce(val: c_uchar, id: c_char) -> c_int {
-    state().call_id("dhdEnableForce", id, format!("dhdEnableForce {val}"))
+    let mut s = state();
+    let r = s.call_id("dhdEnableForce", id, format!("dhdEnableForce {val}"));
+    if r == 0 {
+        s.forces_on = val != 0;
+        if s.forces_on {
+            s.brake = false;
+            s.force_off_cause = 0;
+        } else if s.force_off_cause == 0 {
+            s.force_off_cause = 4; // DHD_FORCEOFF_SOFTWARE
+        }
+    }
+    r
+}
+
+/// `int dhdGetButton(int index, char ID)`: `DHD_ON` (1) if pressed, `DHD_OFF` (0) if not, −1 for
+/// an index outside 0 to 15 (`DHD_MAX_BUTTONS`).
+#[unsafe(no_mangle)]
+pub extern "C" fn dhdGetButton(index: c_int, id: c_char) -> c_int {
+    let mut s = state();
+    let r = s.call_id("dhdGetButton", id, format!("dhdGetButton {index}"));
+    if r < 0 {
+        return r;
+    }
+    match u32::try_from(index).ok().filter(|i| *i < 16) {
+        Some(bit) => c_int::from(s.buttons & (1 << bit) != 0),
+        None => {
+            s.last_error = c"invalid button index";
+            -1
+        }
+    }
+}
+
+/// `int dhdGetStatus(int status[DHD_MAX_STATUS], char ID)`: writes `DHD_MAX_STATUS` (16) ints:
+/// power, connected, started (1), force, brake, force-off cause; the rest 0.
+///
+/// # Safety
+/// `status` null or valid for 16 `c_int` writes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn dhdGetStatus(status: *mut c_int, id: c_char) -> c_int {
+    let mut s = state();
+    let r = s.call_id("dhdGetStatus", id, format!("dhdGetStatus {id}"));
+    if r == 0 && !status.is_null() {
+        let mut v = [0 as c_int; MAX_STATUS];
+        v[0] = 1; // DHD_STATUS_POWER
+        v[1] = 1; // DHD_STATUS_CONNECTED
+        v[2] = 1; // DHD_STATUS_STARTED
+        v[5] = c_int::from(s.forces_on); // DHD_STATUS_FORCE
+        v[6] = c_int::from(s.brake); // DHD_STATUS_BRAKE
+        v[14] = s.force_off_cause; // DHD_STATUS_FORCEOFFCAUSE
+        // SAFETY: valid for MAX_STATUS writes per this function's contract; distinct regions.
+        unsafe { std::ptr::copy_nonoverlapping(v.as_ptr(), status, MAX_STATUS) };
+    }
+    r
 }
 
 /// `int dhdEnableExpertMode()`.

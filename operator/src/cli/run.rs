@@ -102,6 +102,7 @@ pub(super) fn run_cmd(
     net: NetConfig,
     device: DeviceSpec,
     open: OpenOptions,
+    safety: SafetyConfig,
     shutdown: Shutdown,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
@@ -109,7 +110,7 @@ pub(super) fn run_cmd(
         net,
         device,
         open,
-        safety: SafetyConfig::default(),
+        safety,
         seconds: args.seconds,
         periodic: args.periodic()?,
         realtime_priority: args.rt.realtime_priority,

@@ -36,6 +36,18 @@ fn devices_report_on_a_bare_machine_says_so() {
     assert!(
         text.contains("12 N") && text.contains("5000 N/m") && text.contains("sphere r = 0.075 m")
     );
+    // The damping each backend offers (the passivity controller's limit).
+    assert!(text.contains("max damping"), "{text}");
+    let omega = text
+        .lines()
+        .find(|l| l.contains("omega           yes"))
+        .unwrap();
+    assert!(omega.contains("30 N·s/m"), "{omega}");
+    let spacemouse = text
+        .lines()
+        .find(|l| l.contains("spacemouse      NO"))
+        .unwrap();
+    assert!(!spacemouse.contains("N·s/m"), "{spacemouse}");
 }
 
 #[test]
@@ -128,6 +140,74 @@ fn bad_watchdog_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("31.875 ms"), "{e}");
+}
+
+fn run_args(extra: &[&str]) -> RunArgs {
+    let mut argv = vec!["operator", "run", "--device", "scripted:hold"];
+    argv.extend_from_slice(extra);
+    let Command::Run(args) = Cli::try_parse_from(argv).unwrap().command else {
+        panic!("not run")
+    };
+    *args
+}
+
+#[test]
+fn position_scale_is_checked_and_applied() {
+    assert_eq!(run_args(&[]).safety().unwrap().position_scale, 1.0);
+    let args = run_args(&["--position-scale", "0.25"]);
+    assert_eq!(args.safety().unwrap().position_scale, 0.25);
+    for (bad, shown) in [("0", "0"), ("-2", "-2"), ("nan", "NaN"), ("inf", "inf")] {
+        let flag = format!("--position-scale={bad}");
+        let args = run_args(&[&flag]);
+        // Refused before the device is opened or the network is looked at.
+        let e = run(&args, Shutdown::new(), &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "--position-scale {shown}: expected a finite number > 0"
+            )),
+            "{e}"
+        );
+    }
+}
+
+/// Regression: `operator run --json` printed a "network: …" line on stdout before the JSON.
+#[test]
+fn run_json_keeps_stdout_for_the_json() {
+    let dir = std::env::temp_dir().join(format!("mmt-cli-json-{}", std::process::id()));
+    transport::Identity::generate_files(&dir, "operator", &["operator"]).unwrap();
+    let (_, telerobot_crt, _) =
+        transport::Identity::generate_files(&dir, "telerobot", &["telerobot"]).unwrap();
+    let identity = dir.to_str().unwrap().to_owned();
+    let trust = telerobot_crt.to_str().unwrap().to_owned();
+    let net = [
+        "--connect",
+        "127.0.0.1:9",
+        "--identity",
+        &identity,
+        "--trust",
+        &trust,
+    ];
+    for json in [true, false] {
+        let mut argv = net.to_vec();
+        if json {
+            argv.push("--json");
+        }
+        let args = run_args(&argv);
+        // Stopped before any session: the run ends at once, with nothing to report.
+        let stop = Shutdown::new();
+        stop.trigger();
+        let mut out = Vec::new();
+        assert!(run(&args, stop, &mut out).is_err());
+        let text = String::from_utf8(out).unwrap();
+        assert_eq!(
+            text.contains("network: telerobot 127.0.0.1:9"),
+            !json,
+            "{text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -113,6 +113,7 @@ pub struct ManagedDevice<B: Backend> {
     reading: DeviceReading,
     last_servo: Option<Duration>,
     record: ForceRecord,
+    faults: u64,
 }
 
 impl<B: Backend> ManagedDevice<B> {
@@ -127,6 +128,7 @@ impl<B: Backend> ManagedDevice<B> {
             reading: DeviceReading::default(),
             last_servo: None,
             record: ForceRecord::default(),
+            faults: 0,
         })
     }
 
@@ -159,6 +161,7 @@ impl<B: Backend> ManagedDevice<B> {
         // Best effort: the backend may be what failed. The fault is recorded either way.
         let _zero = self.write(vec3::ZERO);
         let _off = self.backend.set_force_enabled(false);
+        self.faults += 1;
         self.state = State::Faulted(Fault { at: now, cause });
     }
 
@@ -204,6 +207,10 @@ impl<B: Backend> HapticDevice for ManagedDevice<B> {
 
     fn measured_cv(&self) -> Vec3 {
         self.reading.velocity_m_per_s
+    }
+
+    fn clutch(&self) -> bool {
+        self.reading.clutch
     }
 
     fn servo_cf(&mut self, now: Duration, force_n: Vec3) -> Result<(), DeviceError> {
@@ -292,6 +299,10 @@ impl<B: Backend> HapticDevice for ManagedDevice<B> {
 
     fn force_record(&self) -> &ForceRecord {
         &self.record
+    }
+
+    fn fault_count(&self) -> u64 {
+        self.faults
     }
 }
 

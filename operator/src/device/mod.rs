@@ -202,6 +202,9 @@ pub struct DeviceReading {
     pub position_m: Vec3,
     /// Velocity of the handle [m/s].
     pub velocity_m_per_s: Vec3,
+    /// The clutch input is held: SpaceMouse button 0, the omega's button 0. Backends without
+    /// buttons (scripted, replay) never press it.
+    pub clutch: bool,
 }
 
 /// A haptic device as the haptic loop sees it. Implemented by [`ManagedDevice`] over any
@@ -219,6 +222,8 @@ pub trait HapticDevice: Send {
     fn measured_cp(&self) -> Vec3;
     /// Velocity of the latest reading [m/s] (CRTK `measured_cv`, translation only).
     fn measured_cv(&self) -> Vec3;
+    /// The clutch input of the latest reading (true = held).
+    fn clutch(&self) -> bool;
     /// Commands a force [N] (CRTK `servo_cf`). Reaches the device only while enabled, multiplied
     /// by the enable ramp; zero is written otherwise. Non-finite forces are written as zero.
     /// Call it every tick, also while disabled (it feeds the watchdogs).
@@ -237,6 +242,8 @@ pub trait HapticDevice: Send {
     fn trip(&mut self, now: Duration, reason: &str);
     /// Statistics of the forces written (for reports).
     fn force_record(&self) -> &ForceRecord;
+    /// Times the device entered [`OperatingState::Faulted`] (for reports).
+    fn fault_count(&self) -> u64;
 }
 
 /// The driver interface a backend implements. Keep it small: the state machine, the ramp and the
@@ -294,13 +301,14 @@ pub enum DeviceError {
         /// What was looked for and where.
         detail: String,
     },
-    /// The HID layer failed.
-    #[error("HID: {what}: {source}")]
+    /// The HID layer failed. (The hidapi error is in the message, not the `source()`, so that
+    /// printed error chains do not repeat it.)
+    #[error("HID: {what}: {error}")]
     Hid {
         /// What was being done.
         what: String,
         /// The hidapi error.
-        source: hidapi::HidError,
+        error: hidapi::HidError,
     },
     /// The Force Dimension SDK could not be loaded or is incomplete.
     #[error(transparent)]
@@ -314,6 +322,13 @@ pub enum DeviceError {
         code: i32,
         /// `dhdErrorGetLastStr()`.
         message: String,
+    },
+    /// The device switched its forces off by itself (its firmware watchdog, its velocity guard, a
+    /// button, a disconnection), while the app had them on.
+    #[error("the device switched its forces off: {cause}")]
+    ForcesOff {
+        /// Why, as the device reported it.
+        cause: String,
     },
     /// The device is faulted; [`HapticDevice::reset`] it first.
     #[error("device is faulted ({cause}); reset it before enabling")]

@@ -33,12 +33,15 @@ const NAMES: [&str; 7] = ["t_s", "x", "y", "z", "vx", "vy", "vz"];
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The file could not be read.
-    #[error("cannot read replay file {file}: {source}")]
+    ///
+    /// The OS error is in the message and deliberately not the error's `source()`: the app
+    /// prints error chains (`{:#}`), which would repeat it.
+    #[error("cannot read replay file {file}: {error}")]
     Io {
         /// The file.
         file: String,
         /// The OS error.
-        source: io::Error,
+        error: io::Error,
     },
     /// The first line is not a known header.
     #[error(
@@ -124,9 +127,9 @@ impl ReplayTrajectory {
     /// Reads and checks a replay file.
     pub fn load(path: &Path) -> Result<Self, ReplayError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ReplayError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| ReplayError::Io {
             file: file.clone(),
-            source,
+            error,
         })?;
         Self::parse(&text, &file)
     }

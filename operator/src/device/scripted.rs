@@ -42,6 +42,7 @@ impl Backend for ScriptedBackend {
         Ok(DeviceReading {
             position_m: s.position_m,
             velocity_m_per_s: s.velocity_m_per_s,
+            clutch: false,
         })
     }
 

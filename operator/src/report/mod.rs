@@ -18,6 +18,7 @@ use std::fmt::Write as _;
 use mmt::experiment::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
 use mmt::node::gated_from_wire;
 use mmt::node::operator::OperatorOutput;
+use mmt::render::RendererStats;
 use mmt::scene::Scene;
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
@@ -25,7 +26,7 @@ use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
 use rt::{LatencyReport, LinkReport, Quantiles, TimingReport};
 use serde::Serialize;
 
-use crate::device::ForceRecord;
+use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
 use crate::helper::Recording;
 use crate::safety::SafetyStats;
@@ -64,10 +65,23 @@ pub struct NetworkedReport {
     pub clouds: (u64, u64),
     /// What the safety layer did.
     pub safety: SafetyStats,
+    /// The operator's renderers (the last session's node): the normal axis first (if the model
+    /// has one), then each rendered tangential axis. `unresolved_ticks` counts the
+    /// renderability gate acting (a raised mass or the reduced model), `clipped_ticks` the
+    /// stiffness clipped by Colgate's bound.
+    pub renderers: Vec<RendererStats>,
     /// The forces written to the device.
     pub device_forces: ForceRecord,
     /// The device.
     pub device: String,
+    /// The device's operating state at the end of the run (after the loop disabled it:
+    /// `Disabled`, or `Faulted` if it faulted).
+    pub device_state: OperatingState,
+    /// Times the device faulted: servo watchdog, SDK error, forces cut by the device itself
+    /// (firmware watchdog, velocity guard), a refused enable.
+    pub device_faults: u64,
+    /// The fault the device ended in, if any: its cause and when.
+    pub device_fault: Option<String>,
     /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
     /// The telerobot daemon's summary (the demo, which runs it).
@@ -198,8 +212,15 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         sessions: end.sessions,
         clouds: rec.clouds,
         safety: end.safety,
+        renderers: end.renderers.clone(),
         device_forces: end.force_record,
         device: facts.device.clone(),
+        device_state: end.device.operating_state(),
+        device_faults: end.device.fault_count(),
+        device_fault: end
+            .device
+            .fault()
+            .map(|f| format!("{} (at {:.3} s)", f.cause, f.at.as_secs_f64())),
         wall_seconds: facts.wall_seconds,
         telerobot: None,
         shim: None,
@@ -402,6 +423,15 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             us(&s.lateness.quantiles()),
         );
     }
+    let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
+    row(
+        "renderer ticks: unresolved (gate) / clipped",
+        format!(
+            "{} / {}",
+            sum(|s| s.unresolved_ticks),
+            sum(|s| s.clipped_ticks)
+        ),
+    );
     let s = &r.safety;
     row(
         "safety episodes: watchdog / rate / max / workspace",
@@ -413,6 +443,33 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             s.workspace.episodes
         ),
     );
+    row(
+        "  loop overrun / stale parameters / clutch",
+        format!(
+            "{} / {} / {}",
+            s.loop_overrun.episodes, s.stale_params.episodes, s.clutch.episodes
+        ),
+    );
+    row(
+        "  non-finite force / position / velocity",
+        format!(
+            "{} / {} / {}",
+            s.non_finite_force.episodes,
+            s.non_finite_position.episodes,
+            s.non_finite_velocity.episodes
+        ),
+    );
+    row(
+        "  position-scale changes refused",
+        s.scale_rejections.to_string(),
+    );
+    row(
+        "device state, faults",
+        format!("{:?} / {}", r.device_state, r.device_faults),
+    );
+    if let Some(f) = &r.device_fault {
+        row("  fault", f.clone());
+    }
     let p = &s.passivity;
     row(
         "passivity: min energy / dissipated / ticks",
@@ -447,3 +504,6 @@ pub fn files(
     }
     Ok(files)
 }
+
+#[cfg(test)]
+mod tests;

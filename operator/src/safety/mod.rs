@@ -2,32 +2,40 @@
 //! It runs inside the 1 kHz loop: no allocation, no locks, no per-tick logging (each rule logs a
 //! `tracing` event when it starts and stops acting, and counts into [`SafetyStats`]).
 //!
-//! Position path ([`SafetyLayer::command_position`]): clutch and position scaling, translation
-//! only, never a jump ([`position`]). A non-finite measured position holds the last command.
+//! Position path ([`SafetyLayer::command_position`], [`SafetyLayer::command_velocity`]): clutch
+//! and position scaling, translation only, never a jump ([`position`]). A non-finite measured
+//! position holds the last command; a non-finite measured velocity is replaced by zero (the
+//! velocity feeds the renderer's damping: a NaN there would make the force NaN, and a held
+//! velocity would keep damping a motion that may have stopped). Both are counted.
 //!
 //! Force path ([`SafetyLayer::filter_force`]), in this order, and why:
 //! 1. **Non-finite → zero.** A NaN/inf component means the renderer is broken; its last finite
 //!    value is not trusted either, so the output goes to zero **at once** (not rate limited —
 //!    removing force cannot inject energy) and stays zero while the storm lasts. While the clutch
 //!    is engaged the renderer's force is also replaced by zero (then rate limited, no step).
-//! 2. **Saturation** of the renderer force at the device's max force (vector norm, direction
+//! 2. **Parameter-age fade** ([`watchdog`]): while a model is rendered from parameters older than
+//!    allowed, the renderer's force fades out (and back in after recovery). The renderer's force
+//!    only: with no model yet nothing is stale (the telerobot sends parameters only after the
+//!    first contact), and an old model never switches off a safety force.
+//! 3. **Saturation** of the renderer force at the device's max force (vector norm, direction
 //!    kept).
-//! 3. **Workspace soft limit**: beyond the device workspace a spring
+//! 4. **Workspace soft limit**: beyond the device workspace a spring
 //!    (`workspace_stiffness_n_per_m` × distance outside) pushes back. It is added *after* the
 //!    renderer force was saturated and has **priority**: the sum is kept within max force by
 //!    shrinking the renderer force, never the spring, so a renderer pushing outward cannot cancel
 //!    the push-back. (Saturating after the sum would let it; adding after without a budget would
 //!    exceed max force.)
-//! 4. **Software watchdog** gain ([`watchdog`]): fades everything to zero on loop overrun or stale
-//!    parameters, and back in after recovery. It scales the spring too: when timing is lost no
-//!    force should be trusted; the device's own watchdog is the next line.
-//! 5. **Force-rate limit** [N/s], so no rule above (clutch, workspace entry, model switch) can
+//! 5. **Loop-overrun fade** ([`watchdog`]): fades everything to zero when the loop misses its
+//!    deadline by more than allowed, and back in after recovery. It scales the spring too: when
+//!    timing is lost no force computed from the loop's positions is trusted; the device's own
+//!    watchdog is the next line.
+//! 6. **Force-rate limit** [N/s], so no rule above (clutch, workspace entry, model switch) can
 //!    make the output step.
-//! 6. **Passivity** ([`passivity`]): the energy observed at the device port over the last tick
+//! 7. **Passivity** ([`passivity`]): the energy observed at the device port over the last tick
 //!    (with the force actually written), and the damping that keeps it from going negative,
 //!    added last so nothing after it undoes it; then saturation again (a damping force may not
 //!    exceed the device either; scaling down keeps the port passive).
-//! 7. A final finite check.
+//! 8. A final finite check.
 //!
 //! The enable ramp is not here: it belongs to the device state machine
 //! ([`crate::device::ManagedDevice`]), which multiplies this layer's output.
@@ -42,7 +50,7 @@ use std::time::Duration;
 pub use passivity::{PassivityConfig, PassivityStats};
 pub use position::{InvalidScale, PositionMap, PositionScale};
 pub use stats::{Edge, SafetyStats, TripCount};
-pub use watchdog::{SoftWatchdog, WatchdogConfig};
+pub use watchdog::{Model, SoftWatchdog, WatchdogConfig};
 
 use crate::device::{DeviceCapabilities, Workspace};
 use crate::vec3::{self, Vec3};
@@ -104,9 +112,8 @@ pub struct ForceTick {
     pub now: Duration,
     /// The device's measured position this tick [m] (device coordinates).
     pub measured_cp: Vec3,
-    /// Age of the model parameters rendered; `None` when none has arrived yet (counts as stale).
-    /// Callers without a model pass `Some(Duration::ZERO)`.
-    pub params_age: Option<Duration>,
+    /// What the renderer renders from: no model, or a model and the age of its parameters.
+    pub model: Model,
     /// The renderer's force [N].
     pub force_n: Vec3,
 }
@@ -226,10 +233,25 @@ impl SafetyLayer {
         self.max_force_n
     }
 
-    /// The watchdog gain now, in [0, 1].
+    /// The watchdog's gain on the renderer's force now, in [0, 1] (both rules).
     #[must_use]
     pub fn watchdog_gain(&self) -> f64 {
         self.watchdog.gain()
+    }
+
+    /// The nominal loop period the overrun rule measures against.
+    #[must_use]
+    pub fn loop_period(&self) -> Duration {
+        self.watchdog.config().nominal_period
+    }
+
+    /// Sets the nominal loop period to the session's tick period (the telerobot's control rate
+    /// is only known from its `Welcome`); the overrun allowance stays
+    /// [`WatchdogConfig::max_overrun`]. Refuses a zero period.
+    pub fn set_loop_period(&mut self, period: Duration) -> Result<(), SafetyError> {
+        positive_duration("watchdog.nominal_period", period)?;
+        self.watchdog.set_nominal_period(period);
+        Ok(())
     }
 
     /// The clutch and scale state.
@@ -276,11 +298,27 @@ impl SafetyLayer {
         commanded
     }
 
+    /// Velocity path, once per tick after [`Self::command_position`]: the commanded velocity
+    /// [m/s] for the measured device velocity — scaled, zero while clutched, and zero when not
+    /// finite (counted, logged once per episode).
+    pub fn command_velocity(&mut self, measured_cv: Vec3) -> Vec3 {
+        let finite = vec3::is_finite(measured_cv);
+        log_edge(
+            self.stats.non_finite_velocity.record(!finite),
+            "non-finite velocity",
+            "measured velocity not finite; zero velocity commanded",
+        );
+        if !finite || self.position.clutched() {
+            return vec3::ZERO;
+        }
+        vec3::scale(measured_cv, self.position.scale().get())
+    }
+
     /// Force path, once per tick: the force to hand to `servo_cf` [N]. See the module docs.
     pub fn filter_force(&mut self, tick: &ForceTick) -> Vec3 {
         let s = &mut self.stats;
         s.ticks += 1;
-        let wd = self.watchdog.step(tick.now, tick.params_age);
+        let wd = self.watchdog.step(tick.now, tick.model);
         log_edge(
             s.loop_overrun.record(wd.overrun),
             "loop overrun",
@@ -289,10 +327,10 @@ impl SafetyLayer {
         log_edge(
             s.stale_params.record(wd.stale),
             "stale parameters",
-            "model parameters too old or absent; fading force out",
+            "model parameters too old; fading the renderer's force out",
         );
         log_edge(
-            s.watchdog_fading.record(wd.gain < 1.0),
+            s.watchdog_fading.record(wd.renderer_gain() < 1.0),
             "watchdog",
             "force below full strength",
         );
@@ -318,11 +356,14 @@ impl SafetyLayer {
             tick.force_n
         };
 
-        // 2. Saturation of the renderer force.
+        // 2. Parameter-age fade, on the renderer's force only.
+        let renderer = vec3::scale(renderer, wd.model_gain);
+
+        // 3. Saturation of the renderer force.
         let mut saturated = vec3::norm(renderer) > self.max_force_n;
         let renderer = vec3::clamp_norm(renderer, self.max_force_n);
 
-        // 3. Workspace spring with priority in the force budget.
+        // 4. Workspace spring with priority in the force budget.
         let outside = if vec3::is_finite(tick.measured_cp) {
             self.workspace.excess(tick.measured_cp)
         } else {
@@ -344,10 +385,10 @@ impl SafetyLayer {
         );
         let total = vec3::add(spring, vec3::scale(renderer, alpha));
 
-        // 4. Watchdog fade.
-        let faded = vec3::scale(total, wd.gain);
+        // 5. Loop-overrun fade, on everything.
+        let faded = vec3::scale(total, wd.timing_gain);
 
-        // 5. Rate limit.
+        // 6. Rate limit.
         let step = vec3::sub(faded, self.last_force);
         let max_step = self.max_rate_n_per_s * wd.dt_s;
         let limited = vec3::norm(step) > max_step;
@@ -358,7 +399,7 @@ impl SafetyLayer {
         );
         let out = vec3::add(self.last_force, vec3::clamp_norm(step, max_step));
 
-        // 6. Passivity, then the device limit again.
+        // 7. Passivity, then the device limit again.
         // The controller's own episodes are counted, not logged: they can be many short ones.
         let (out, _, capped) = self.passivity.control(out, wd.dt_s);
         log_edge(
@@ -368,7 +409,7 @@ impl SafetyLayer {
         );
         let out = vec3::clamp_norm(out, self.max_force_n);
 
-        // 7. Final guard.
+        // 8. Final guard.
         let out = if vec3::is_finite(out) {
             out
         } else {

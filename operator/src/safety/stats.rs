@@ -55,6 +55,8 @@ pub struct SafetyStats {
     pub non_finite_force: TripCount,
     /// Measured position had a NaN or infinite component (commanded position held).
     pub non_finite_position: TripCount,
+    /// Measured velocity had a NaN or infinite component (zero velocity commanded).
+    pub non_finite_velocity: TripCount,
     /// Force magnitude limited to the device maximum.
     pub saturated: TripCount,
     /// Force change limited by the rate limit.
@@ -63,9 +65,10 @@ pub struct SafetyStats {
     pub workspace: TripCount,
     /// Loop overran its deadline by more than allowed (watchdog).
     pub loop_overrun: TripCount,
-    /// Model parameters older than allowed, or none yet (watchdog).
+    /// A model rendered from parameters older than allowed (watchdog; renderer force faded).
     pub stale_params: TripCount,
-    /// Watchdog gain below 1 (fading out, held at zero, or fading back in).
+    /// Watchdog gain on the renderer's force below 1 (fading out, held at zero, or fading back
+    /// in).
     pub watchdog_fading: TripCount,
     /// Clutch engaged.
     pub clutch: TripCount,

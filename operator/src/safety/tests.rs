@@ -4,7 +4,9 @@ use super::*;
 
 const MS: Duration = Duration::from_millis(1);
 const INSIDE: Vec3 = [0.0; 3];
-const FRESH: Option<Duration> = Some(Duration::ZERO);
+const FRESH: Model = Model::Rendering {
+    params_age: Duration::ZERO,
+};
 
 fn omega() -> DeviceCapabilities {
     DeviceCapabilities::omega7("test")
@@ -26,7 +28,7 @@ fn tick(k: u32, force_n: Vec3) -> ForceTick {
     ForceTick {
         now: k * MS,
         measured_cp: INSIDE,
-        params_age: FRESH,
+        model: FRESH,
         force_n,
     }
 }
@@ -188,12 +190,12 @@ fn workspace_stiffness_is_capped_at_the_device_maximum() {
     assert!(close(s.filter_force(&t), [0.0, 0.0, -5.0]));
 }
 
-/// Runs a constant 6 N renderer force; `gap_at` inserts a late tick, `age` gives the parameter
-/// age per tick. Returns the output magnitudes at each tick time [ms].
+/// Runs a constant 6 N renderer force; `gap_at` inserts a late tick, `model` gives the model
+/// (and its parameter age) per tick. Returns the output magnitudes at each tick time [ms].
 fn run_watchdog(
     ticks: u32,
     gap_at: Option<u32>,
-    age: impl Fn(u32) -> Option<Duration>,
+    model: impl Fn(u32) -> Model,
 ) -> (Vec<(u32, f64)>, SafetyLayer) {
     let mut s = layer(SafetyConfig::default());
     let mut out = Vec::new();
@@ -203,7 +205,7 @@ fn run_watchdog(
         let f = s.filter_force(&ForceTick {
             now: t * MS,
             measured_cp: INSIDE,
-            params_age: age(t),
+            model: model(t),
             force_n: [6.0, 0.0, 0.0],
         });
         out.push((t, f[0]));
@@ -243,12 +245,12 @@ fn loop_overrun_fades_to_zero_and_recovers() {
 #[test]
 fn stale_parameters_fade_out_and_fresh_ones_fade_back_in() {
     // Parameters stop arriving at t = 100 ms (age grows), resume at 900 ms.
-    let age = |t: u32| {
-        Some(if (100..900).contains(&t) {
+    let age = |t: u32| Model::Rendering {
+        params_age: if (100..900).contains(&t) {
             (t - 100) * MS
         } else {
             Duration::ZERO
-        })
+        },
     };
     let (out, s) = run_watchdog(1500, None, age);
     let at = |t: u32| out[(t - 1) as usize].1;
@@ -261,11 +263,121 @@ fn stale_parameters_fade_out_and_fresh_ones_fade_back_in() {
     assert_eq!(s.stats().stale_params.episodes, 1);
 }
 
+/// Ticks at `period` for 2 s with one tick `late` beyond its deadline half-way (if any);
+/// returns the overrun episodes.
+fn overruns_at(period: Duration, late: Option<Duration>) -> u64 {
+    let mut s = layer(SafetyConfig::default());
+    s.set_loop_period(period).unwrap();
+    assert_eq!(s.loop_period(), period);
+    let ticks = (2.0 / period.as_secs_f64()) as u32;
+    let mut now = Duration::ZERO;
+    for k in 0..ticks {
+        now += period;
+        if k == ticks / 2 {
+            now += late.unwrap_or_default();
+        }
+        s.filter_force(&ForceTick {
+            now,
+            ..tick(0, [1.0, 0.0, 0.0])
+        });
+    }
+    s.stats().loop_overrun.episodes
+}
+
+/// Regression: the overrun rule measured against a fixed 1 ms whatever the control rate, so a
+/// 200 Hz loop overran on every tick and a 2 kHz one could lose 2.5 ms unnoticed.
 #[test]
-fn missing_parameters_count_as_stale() {
-    let (out, s) = run_watchdog(100, None, |_| None);
-    assert_eq!(out[99].1, 0.0);
-    assert!(s.stats().stale_params.active);
+fn the_overrun_rule_follows_the_loop_period() {
+    let allowance = WatchdogConfig::default().max_overrun;
+    for hz in [200u64, 2000] {
+        let period = Duration::from_nanos(1_000_000_000 / hz);
+        assert_eq!(overruns_at(period, None), 0, "{hz} Hz healthy");
+        // Late by just under and just over the allowance.
+        let under = allowance - Duration::from_micros(10);
+        let over = allowance + Duration::from_micros(10);
+        assert_eq!(
+            overruns_at(period, Some(under)),
+            0,
+            "{hz} Hz within the allowance"
+        );
+        assert_eq!(
+            overruns_at(period, Some(over)),
+            1,
+            "{hz} Hz beyond the allowance"
+        );
+    }
+    let mut s = layer(SafetyConfig::default());
+    assert!(s.set_loop_period(Duration::ZERO).is_err());
+}
+
+/// Regression: every healthy session started with a stale-params trip, because the telerobot
+/// sends parameters only after the first contact and "none yet" counted as stale — and the fade
+/// also switched the workspace spring off.
+#[test]
+fn no_model_yet_is_not_stale_and_the_workspace_spring_acts() {
+    let mut s = layer(SafetyConfig::default());
+    let outside = [0.085, 0.0, 0.0];
+    let mut last = [0.0; 3];
+    for k in 0..300u32 {
+        last = s.filter_force(&ForceTick {
+            now: k * MS,
+            measured_cp: outside,
+            model: Model::None,
+            force_n: [0.0; 3],
+        });
+    }
+    // 500 N/m × 10 mm = 5 N inward, at full strength.
+    assert!(close(last, [-5.0, 0.0, 0.0]), "{last:?}");
+    let st = s.stats();
+    assert_eq!(st.stale_params.episodes, 0);
+    assert_eq!(st.watchdog_fading.episodes, 0);
+    assert_eq!(st.workspace.episodes, 1);
+    assert_eq!(s.watchdog_gain(), 1.0);
+}
+
+#[test]
+fn stale_parameters_fade_the_renderer_but_never_the_workspace_spring() {
+    let mut s = layer(SafetyConfig::default());
+    let outside = [0.085, 0.0, 0.0];
+    let stale = Model::Rendering {
+        params_age: Duration::from_secs(2),
+    };
+    let mut last = [0.0; 3];
+    for k in 0..300u32 {
+        last = s.filter_force(&ForceTick {
+            now: k * MS,
+            measured_cp: outside,
+            model: stale,
+            force_n: [0.0, 4.0, 0.0],
+        });
+    }
+    // The renderer's sideways 4 N is gone, the spring's 5 N inward is intact.
+    assert!(close(last, [-5.0, 0.0, 0.0]), "{last:?}");
+    assert_eq!(s.stats().stale_params.episodes, 1);
+    assert_eq!(s.watchdog_gain(), 0.0);
+}
+
+#[test]
+fn a_loop_overrun_fades_the_workspace_spring_too() {
+    let mut s = layer(SafetyConfig::default());
+    let outside = [0.085, 0.0, 0.0];
+    let mut t = 0;
+    let mut out = Vec::new();
+    for k in 0..100u32 {
+        t += if k == 50 { 10 } else { 1 };
+        out.push(s.filter_force(&ForceTick {
+            now: t * MS,
+            measured_cp: outside,
+            model: Model::None,
+            force_n: [0.0; 3],
+        }));
+    }
+    assert!(close(out[49], [-5.0, 0.0, 0.0]));
+    assert_eq!(
+        out[99], [0.0; 3],
+        "zero force while the loop's timing is lost"
+    );
+    assert_eq!(s.stats().loop_overrun.episodes, 1);
 }
 
 #[test]

@@ -25,6 +25,7 @@ impl Backend for Mock {
         Ok(DeviceReading {
             position_m: [0.01, 0.0, 0.0],
             velocity_m_per_s: [0.0; 3],
+            clutch: false,
         })
     }
     fn write_force(&mut self, f: Vec3) -> Result<(), DeviceError> {
@@ -193,6 +194,13 @@ fn trip_faults_from_any_state() {
         r.dev.fault().unwrap().cause,
         FaultCause::Requested("operator pressed stop".into())
     );
+    assert_eq!(r.dev.fault_count(), 1);
+    // Tripping a faulted device is not a second fault; a fault after a reset is.
+    r.dev.trip(ms(6), "again");
+    assert_eq!(r.dev.fault_count(), 1);
+    r.dev.reset(ms(7)).unwrap();
+    r.dev.trip(ms(8), "third time");
+    assert_eq!(r.dev.fault_count(), 2);
 }
 
 #[test]

@@ -10,7 +10,12 @@
 //! - **enable** (from [`super::ManagedDevice`]): `dhdSetForce(0)` → `dhdEnableForce(on)` →
 //!   `dhdSetForce(0)`;
 //! - **disable**: `dhdSetForce(0)` → `dhdEnableForce(off)`;
-//! - **drop**: `dhdSetForce(0)` → `dhdEnableForce(off)` → `dhdClose`.
+//! - **drop**: `dhdSetForce(0)` → `dhdEnableForce(off)` → `dhdClose`;
+//! - **read**, once per tick: `dhdGetStatus` → `dhdGetPosition` → `dhdGetLinearVelocity` →
+//!   `dhdGetButton(0)` (the clutch: the button on the handle). While
+//!   the app has forces on, a status with forces off (the SDK's watchdog, the velocity guard's
+//!   brake, the force button, a disconnection) is a [`DeviceError::ForcesOff`] naming the cause,
+//!   which faults the device ([`super::ManagedDevice`] writes zero and switches forces off).
 //!
 //! The velocity guard: the firmware brakes when an axis moves faster than a threshold. Force
 //! Dimension recommends keeping the factory value, so by default it is read and the device is
@@ -33,6 +38,8 @@ use crate::vec3::{self, Vec3};
 
 /// `DHD_DEVICE_OMEGA3` … `DHD_DEVICE_OMEGA7_LEFT` (dhdc.h).
 const OMEGA_FAMILY: std::ops::RangeInclusive<i32> = 33..=37;
+/// The button that clutches: 0, the button on the omega's handle (the only one of an omega.3/6).
+const CLUTCH_BUTTON: std::ffi::c_int = 0;
 /// One watchdog unit of the DHD firmware.
 pub const WATCHDOG_UNIT: Duration = Duration::from_micros(125);
 
@@ -81,6 +88,8 @@ pub struct OmegaBackend {
     sdk: Dhd,
     id: c_char,
     capabilities: DeviceCapabilities,
+    /// Forces switched on by the app (the last `dhdEnableForce` that succeeded).
+    forces_on: bool,
 }
 
 impl OmegaBackend {
@@ -117,6 +126,7 @@ impl OmegaBackend {
             sdk,
             id,
             capabilities: DeviceCapabilities::omega7("Force Dimension device"),
+            forces_on: false,
         };
         backend.configure(units, config.velocity_threshold)?;
         Ok(backend)
@@ -161,9 +171,20 @@ impl Backend for OmegaBackend {
     }
 
     fn read(&mut self, _now: Duration) -> Result<DeviceReading, DeviceError> {
+        let status = self.sdk.status(self.id)?;
+        if self.forces_on && !status.forces_on() {
+            let cause = match status.force_off_cause() {
+                sdk::ForceOffCause::None if status.brake() => sdk::ForceOffCause::Velocity,
+                c => c,
+            };
+            return Err(DeviceError::ForcesOff {
+                cause: cause.to_string(),
+            });
+        }
         Ok(DeviceReading {
             position_m: self.sdk.position(self.id)?,
             velocity_m_per_s: self.sdk.linear_velocity(self.id)?,
+            clutch: self.sdk.button(self.id, CLUTCH_BUTTON)?,
         })
     }
 
@@ -172,7 +193,13 @@ impl Backend for OmegaBackend {
     }
 
     fn set_force_enabled(&mut self, on: bool) -> Result<(), DeviceError> {
-        self.sdk.enable_force(self.id, on)
+        // Off counts as off even if the call failed (nothing is expected from the device then).
+        if !on {
+            self.forces_on = false;
+        }
+        self.sdk.enable_force(self.id, on)?;
+        self.forces_on = on;
+        Ok(())
     }
 }
 

@@ -48,8 +48,114 @@ pub const REQUIRED_SYMBOLS: &[&str] = &[
     "dhdSetWatchdog",
     "dhdGetVelocityThreshold",
     "dhdSetVelocityThreshold",
+    "dhdGetStatus",
+    "dhdGetButton",
     "dhdErrorGetLastStr",
 ];
+
+/// Length of the buffer handed to `dhdGetStatus`. The SDK writes `DHD_MAX_STATUS` ints: 16 in
+/// `dhdc.h` 3.17.5, more in later releases (17 and up). The buffer is twice the documented size,
+/// so a newer SDK that writes a longer array cannot write past it.
+pub const STATUS_BUFFER_LEN: usize = 32;
+
+/// `DHD_STATUS_*` indices into the status array (`dhdc.h` 3.17.5) that the backend reads.
+mod status_index {
+    pub const FORCE: usize = 5;
+    pub const BRAKE: usize = 6;
+    pub const FORCEOFFCAUSE: usize = 14;
+}
+
+/// `dhdGetStatus`'s answer: the device's status flags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Status(pub [c_int; STATUS_BUFFER_LEN]);
+
+impl Status {
+    fn flag(&self, i: usize) -> bool {
+        self.0.get(i).is_some_and(|v| *v != 0)
+    }
+
+    /// `DHD_STATUS_FORCE`: forces are on.
+    #[must_use]
+    pub fn forces_on(&self) -> bool {
+        self.flag(status_index::FORCE)
+    }
+
+    /// `DHD_STATUS_BRAKE`: the electromagnetic brakes are on (the velocity guard brakes).
+    #[must_use]
+    pub fn brake(&self) -> bool {
+        self.flag(status_index::BRAKE)
+    }
+
+    /// `DHD_STATUS_FORCEOFFCAUSE`: why forces were last switched off.
+    #[must_use]
+    pub fn force_off_cause(&self) -> ForceOffCause {
+        ForceOffCause::from_code(
+            self.0
+                .get(status_index::FORCEOFFCAUSE)
+                .copied()
+                .unwrap_or(0),
+        )
+    }
+}
+
+/// `DHD_FORCEOFF_*` (`dhdc.h` 3.17.5): why the device switched its forces off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ForceOffCause {
+    /// `DHD_FORCEOFF_NONE` (0).
+    None,
+    /// `DHD_FORCEOFF_BUTTON` (1): the force button.
+    Button,
+    /// `DHD_FORCEOFF_VELOCITY` (2): the velocity guard.
+    Velocity,
+    /// `DHD_FORCEOFF_WATCHDOG` (3): the firmware watchdog.
+    Watchdog,
+    /// `DHD_FORCEOFF_SOFTWARE` (4): a software request.
+    Software,
+    /// `DHD_FORCEOFF_USBDISCN` (5): USB disconnection.
+    UsbDisconnect,
+    /// `DHD_FORCEOFF_DEADMAN` (6): the dead-man switch.
+    DeadMan,
+    /// A code this wrapper does not know.
+    Other(c_int),
+}
+
+impl ForceOffCause {
+    /// The cause for a `DHD_FORCEOFF_*` code.
+    #[must_use]
+    pub fn from_code(code: c_int) -> Self {
+        match code {
+            0 => Self::None,
+            1 => Self::Button,
+            2 => Self::Velocity,
+            3 => Self::Watchdog,
+            4 => Self::Software,
+            5 => Self::UsbDisconnect,
+            6 => Self::DeadMan,
+            c => Self::Other(c),
+        }
+    }
+}
+
+impl std::fmt::Display for ForceOffCause {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::None => write!(f, "no cause reported"),
+            Self::Button => write!(f, "the force button"),
+            Self::Velocity => write!(
+                f,
+                "the SDK's velocity guard (the handle moved faster than the velocity threshold; brakes on)"
+            ),
+            Self::Watchdog => write!(
+                f,
+                "the SDK's watchdog (no force command within the watchdog time)"
+            ),
+            Self::Software => write!(f, "a software request"),
+            Self::UsbDisconnect => write!(f, "USB disconnection"),
+            Self::DeadMan => write!(f, "the dead-man switch"),
+            Self::Other(c) => write!(f, "DHD_FORCEOFF cause {c}"),
+        }
+    }
+}
 
 /// Why the SDK could not be used.
 #[derive(Debug, thiserror::Error)]
@@ -111,6 +217,8 @@ pub struct Dhd {
     set_watchdog: unsafe extern "C" fn(c_uchar, c_char) -> c_int,
     get_velocity_threshold: unsafe extern "C" fn(*mut c_uint, c_char) -> c_int,
     set_velocity_threshold: unsafe extern "C" fn(c_uint, c_char) -> c_int,
+    get_status: unsafe extern "C" fn(*mut c_int, c_char) -> c_int,
+    get_button: unsafe extern "C" fn(c_int, c_char) -> c_int,
     error_get_last_str: unsafe extern "C" fn() -> *const c_char,
     /// Keeps the code behind the pointers mapped; never used after the pointers.
     _library: Library,
@@ -185,6 +293,8 @@ impl Dhd {
                 symbol(&lib, "dhdSetWatchdog", m),
                 symbol(&lib, "dhdGetVelocityThreshold", m),
                 symbol(&lib, "dhdSetVelocityThreshold", m),
+                symbol(&lib, "dhdGetStatus", m),
+                symbol(&lib, "dhdGetButton", m),
                 symbol(&lib, "dhdErrorGetLastStr", m),
             )
         };
@@ -204,6 +314,8 @@ impl Dhd {
                 Some(set_watchdog),
                 Some(get_velocity_threshold),
                 Some(set_velocity_threshold),
+                Some(get_status),
+                Some(get_button),
                 Some(error_get_last_str),
             ) => Ok(Self {
                 get_device_count,
@@ -220,6 +332,8 @@ impl Dhd {
                 set_watchdog,
                 get_velocity_threshold,
                 set_velocity_threshold,
+                get_status,
+                get_button,
                 error_get_last_str,
                 _library: lib,
                 path: shown,
@@ -381,6 +495,23 @@ impl Dhd {
         let r = unsafe { (self.get_velocity_threshold)(&mut v, id) };
         self.check("dhdGetVelocityThreshold", r)?;
         Ok(v)
+    }
+
+    /// `dhdGetStatus(status, id)`: the device's status flags.
+    pub fn status(&self, id: c_char) -> Result<Status, DeviceError> {
+        let mut s = [0 as c_int; STATUS_BUFFER_LEN];
+        // SAFETY: the SDK writes DHD_MAX_STATUS (16 in 3.17.5) ints; the buffer holds
+        // STATUS_BUFFER_LEN = 32, writable and alive for the call.
+        let r = unsafe { (self.get_status)(s.as_mut_ptr(), id) };
+        self.check("dhdGetStatus", r)?;
+        Ok(Status(s))
+    }
+
+    /// `dhdGetButton(index, id)`: whether button `index` is pressed (`DHD_ON`).
+    pub fn button(&self, id: c_char, index: c_int) -> Result<bool, DeviceError> {
+        // SAFETY: plain value arguments.
+        let r = unsafe { (self.get_button)(index, id) };
+        Ok(self.check("dhdGetButton", r)? != 0)
     }
 
     /// `dhdSetVelocityThreshold(val, id)`: above it the device brakes.

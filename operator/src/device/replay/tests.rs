@@ -106,6 +106,22 @@ fn missing_file_names_it() {
     assert!(e.contains("/nonexistent/run.csv"), "{e}");
 }
 
+/// Regression: the app prints error chains (`{:#}`), and the OS error was both in the message
+/// and the source, so it was printed twice.
+#[test]
+fn missing_file_error_says_the_os_error_once() {
+    let e = ReplayTrajectory::load(Path::new("/nonexistent/run.csv")).unwrap_err();
+    let chain = format!(
+        "{:#}",
+        anyhow::Error::from(crate::device::DeviceError::from(e))
+    );
+    assert_eq!(chain.matches("No such file").count(), 1, "{chain}");
+    assert_eq!(
+        chain,
+        "cannot read replay file /nonexistent/run.csv: No such file or directory (os error 2)"
+    );
+}
+
 #[test]
 fn writer_output_replays_exactly() {
     let readings = [
@@ -119,6 +135,7 @@ fn writer_output_replays_exactly() {
             &DeviceReading {
                 position_m: p,
                 velocity_m_per_s: v,
+                clutch: false,
             },
         )
         .unwrap();
@@ -137,6 +154,7 @@ fn writer_refuses_non_finite() {
     let bad = DeviceReading {
         position_m: [f64::NAN, 0.0, 0.0],
         velocity_m_per_s: [0.0; 3],
+        clutch: false,
     };
     assert!(w.write(0.0, &bad).is_err());
 }

@@ -9,7 +9,9 @@
 //!
 //! Axis convention: the HID reports x to the right, y toward the user and z down (pressing the
 //! cap); the device frame here is x right, y away from the user, z up, i.e. `[x, −y, −z]`.
-//! Rotation and buttons are decoded and kept ([`SpaceMouseBackend::rotation`],
+//! Button 0 (the left button) is the **clutch** ([`DeviceReading::clutch`]): held, the tool stays
+//! where it is while the position integrates on (the safety layer's clutch, translation only).
+//! Rotation and the other buttons are decoded and kept ([`SpaceMouseBackend::rotation`],
 //! [`SpaceMouseBackend::buttons`]) but drive nothing yet.
 //!
 //! Not here: report decoding ([`report`], pure), force rendering (there is none).
@@ -90,9 +92,9 @@ impl ReportSource for HidReportSource {
     fn read_report(&mut self, buf: &mut [u8]) -> Result<usize, DeviceError> {
         self.device
             .read_timeout(buf, 0)
-            .map_err(|source| DeviceError::Hid {
+            .map_err(|error| DeviceError::Hid {
                 what: "reading a SpaceMouse report".into(),
-                source,
+                error,
             })
     }
 }
@@ -105,6 +107,9 @@ pub struct ReportStats {
     /// Reports refused by the parser.
     pub parse_errors: u64,
 }
+
+/// The clutch: button 0 of the button bitmap.
+const CLUTCH_BUTTON_MASK: u32 = 1;
 
 /// Reports drained per tick at most (a SpaceMouse sends ~60–120 per second).
 const MAX_REPORTS_PER_TICK: usize = 32;
@@ -151,9 +156,9 @@ impl SpaceMouseBackend<HidReportSource> {
             info.product_id(),
             info.path().to_string_lossy()
         );
-        let device = info.open_device(&api).map_err(|source| DeviceError::Hid {
+        let device = info.open_device(&api).map_err(|error| DeviceError::Hid {
             what: format!("opening {name}"),
-            source,
+            error,
         })?;
         Self::new(HidReportSource { device }, config, name)
     }
@@ -286,6 +291,7 @@ impl<S: ReportSource> Backend for SpaceMouseBackend<S> {
         Ok(DeviceReading {
             position_m: self.position,
             velocity_m_per_s: velocity,
+            clutch: self.buttons & CLUTCH_BUTTON_MASK != 0,
         })
     }
 
@@ -333,9 +339,9 @@ pub fn list_hid() -> Result<(Vec<HidEntry>, usize), DeviceError> {
 
 /// The HID API with the device list enumerated.
 fn hid_api() -> Result<hidapi::HidApi, DeviceError> {
-    hidapi::HidApi::new().map_err(|source| DeviceError::Hid {
+    hidapi::HidApi::new().map_err(|error| DeviceError::Hid {
         what: "enumerating HID devices".into(),
-        source,
+        error,
     })
 }
 

@@ -109,6 +109,18 @@ fn both_layouts_and_buttons_update_the_state() {
 }
 
 #[test]
+fn button_0_is_the_clutch() {
+    // Button reports (id 3, bitmap LE): left (bit 0) pressed, then right only, then none.
+    let mut b = backend(vec![
+        vec![vec![3, 0x01, 0x00]],
+        vec![vec![3, 0x02, 0x00]],
+        vec![vec![3, 0x00, 0x00]],
+    ]);
+    let clutch: Vec<bool> = (0..3u32).map(|k| b.read(k * MS).unwrap().clutch).collect();
+    assert_eq!(clutch, [true, false, false]);
+}
+
+#[test]
 fn garbage_reports_are_counted_not_fatal() {
     let mut b = backend(vec![vec![
         vec![0xff, 1, 2],

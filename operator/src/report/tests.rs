@@ -1,0 +1,121 @@
+use super::*;
+use crate::device::{DeviceSpec, OpenOptions, open_device};
+use crate::haptic::LoopEnd;
+
+fn facts() -> RunFacts {
+    RunFacts {
+        experiment: "networked".into(),
+        scene: "exp1".into(),
+        left_out: Vec::new(),
+        device: "scripted:hold".into(),
+        seed: 0,
+        set_delay_ms: None,
+        truth: None,
+        start_ns: 0,
+        period_ns: 1_000_000,
+        final_offset_ns: None,
+        link: LinkReport::default(),
+        measurements_overwritten: 0,
+        timing: TimingReport::default(),
+        wall_seconds: 0.0,
+    }
+}
+
+/// A report whose loop ended with these safety counters and renderer counters.
+fn report(safety: SafetyStats, renderers: Vec<RendererStats>) -> NetworkedReport {
+    let spec = DeviceSpec::Scripted {
+        name: "hold".into(),
+    };
+    let device = open_device(&spec, &OpenOptions::default()).unwrap();
+    let end = LoopEnd {
+        force_record: *device.force_record(),
+        device,
+        safety,
+        node: Default::default(),
+        renderers,
+        ticks: 0,
+        frame: None,
+        parameters: None,
+        sessions: 1,
+    };
+    build(&facts(), &Recording::default(), &end).1
+}
+
+fn trip(episodes: u64) -> crate::safety::TripCount {
+    crate::safety::TripCount {
+        episodes,
+        ticks: 10 * episodes,
+        active: false,
+    }
+}
+
+/// The table's value for the row starting with `name`.
+fn value<'a>(table: &'a str, name: &str) -> &'a str {
+    table
+        .lines()
+        .find(|l| l.starts_with(name))
+        .map(|l| l[name.len()..].trim())
+        .unwrap_or_else(|| panic!("no row '{name}' in\n{table}"))
+}
+
+/// Regression: the non-finite, overrun, stale-parameter and clutch counters were in the JSON
+/// only.
+#[test]
+fn the_table_shows_every_trip_counter() {
+    let safety = SafetyStats {
+        non_finite_force: trip(1),
+        non_finite_position: trip(2),
+        non_finite_velocity: trip(3),
+        saturated: trip(4),
+        rate_limited: trip(5),
+        workspace: trip(6),
+        loop_overrun: trip(7),
+        stale_params: trip(8),
+        watchdog_fading: trip(9),
+        clutch: trip(10),
+        scale_rejections: 11,
+        ..SafetyStats::default()
+    };
+    let t = table(&report(safety, Vec::new()));
+    assert_eq!(
+        value(&t, "safety episodes: watchdog / rate / max / workspace"),
+        "9 / 5 / 4 / 6"
+    );
+    assert_eq!(
+        value(&t, "  loop overrun / stale parameters / clutch"),
+        "7 / 8 / 10"
+    );
+    assert_eq!(
+        value(&t, "  non-finite force / position / velocity"),
+        "1 / 2 / 3"
+    );
+    assert_eq!(value(&t, "  position-scale changes refused"), "11");
+    assert_eq!(value(&t, "device state, faults"), "Disabled / 0");
+}
+
+/// The renderability gate and Colgate's clip say so in the networked report.
+#[test]
+fn renderer_counters_are_reported() {
+    let normal = RendererStats {
+        ticks: 100,
+        unresolved_ticks: 12,
+        clipped_ticks: 3,
+        ..RendererStats::default()
+    };
+    let tangential = RendererStats {
+        ticks: 100,
+        unresolved_ticks: 1,
+        ..RendererStats::default()
+    };
+    let r = report(SafetyStats::default(), vec![normal, tangential]);
+    let t = table(&r);
+    assert_eq!(
+        value(&t, "renderer ticks: unresolved (gate) / clipped"),
+        "13 / 3"
+    );
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["renderers"][0]["unresolved_ticks"], 12);
+    assert_eq!(json["renderers"][0]["clipped_ticks"], 3);
+    assert_eq!(json["renderers"][1]["unresolved_ticks"], 1);
+    assert_eq!(json["safety"]["non_finite_velocity"]["episodes"], 0);
+}
