@@ -219,9 +219,16 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     helper_stop.trigger();
     let recording = helper.join();
     let stats = link.stats();
-    let final_link = stats.into();
+    let mut final_link: rt::LinkReport = stats.into();
     let overwritten = link.measurements_overwritten();
     let net_result = stop_network(net_task);
+    // quinn's counts are read once more when the session's link is dropped (the session's RTT
+    // and clock are forgotten then, so they come from before).
+    let closed = link.stats();
+    final_link.sent = closed.sent;
+    final_link.quinn_datagrams_transmitted = closed.quinn_datagrams_transmitted;
+    final_link.quinn_congestion_events = closed.quinn_congestion_events;
+    final_link.quinn_lost_packets = closed.quinn_lost_packets;
     let (Ok(end), Ok(recording)) = (end, recording) else {
         return Err(RunError::Io {
             what: "the haptic loop",

@@ -80,6 +80,13 @@ pub struct LinkReport {
     pub rtt_min_ms: Option<f64>,
     /// Clock offset, peer minus ours \[ms\] (operator side).
     pub clock_offset_ms: Option<f64>,
+    /// Datagram frames quinn put on the wire (`sent` minus this were held back or dropped inside
+    /// quinn).
+    pub quinn_datagrams_transmitted: u64,
+    /// Congestion events quinn's controller saw.
+    pub quinn_congestion_events: u64,
+    /// Packets quinn declared lost.
+    pub quinn_lost_packets: u64,
 }
 
 impl From<LinkSnapshot> for LinkReport {
@@ -96,6 +103,9 @@ impl From<LinkSnapshot> for LinkReport {
             rtt_ms: ms(s.rtt_smoothed_ns),
             rtt_min_ms: ms(s.rtt_min_ns),
             clock_offset_ms: ms(s.clock_offset_ns),
+            quinn_datagrams_transmitted: s.quinn_datagrams_transmitted,
+            quinn_congestion_events: s.quinn_congestion_events,
+            quinn_lost_packets: s.quinn_lost_packets,
         }
     }
 }

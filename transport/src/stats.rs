@@ -39,7 +39,24 @@ pub struct LinkStats {
     /// Counts of earlier sessions (order of `sequence_counters`), so the peer's sequence counts
     /// stay cumulative.
     base: [AtomicU64; 5],
+    /// quinn's own counts ([`QUINN_COUNTS`] order), cumulative over sessions.
+    quinn: [AtomicU64; 3],
+    /// ... of earlier sessions.
+    quinn_base: [AtomicU64; 3],
+    /// quinn's congestion window of the current connection \[bytes\] (`u64::MAX`: none yet).
+    quinn_cwnd_bytes: AtomicU64,
 }
+
+/// What [`LinkStats::quinn`] counts, from `quinn::Connection::stats()`: datagram frames
+/// transmitted, congestion events, packets declared lost.
+pub const QUINN_COUNTS: [&str; 3] = [
+    "datagram frames transmitted",
+    "congestion events",
+    "lost packets",
+];
+
+/// Sends between two reads of quinn's connection statistics (about 1 s at 1 kHz).
+const QUINN_EVERY: u64 = 1024;
 
 impl Default for LinkStats {
     fn default() -> Self {
@@ -60,6 +77,9 @@ impl Default for LinkStats {
             clock_offset_ns: AtomicI64::new(NONE),
             clock_delay_ns: AtomicI64::new(NONE),
             base: Default::default(),
+            quinn: Default::default(),
+            quinn_base: Default::default(),
+            quinn_cwnd_bytes: AtomicU64::new(u64::MAX),
         }
     }
 }
@@ -100,6 +120,16 @@ pub struct LinkSnapshot {
     pub clock_offset_ns: Option<i64>,
     /// Round-trip delay δ of the sample θ came from \[ns\].
     pub clock_delay_ns: Option<i64>,
+    /// Datagram frames quinn put on the wire. `sent − quinn_datagrams_transmitted` were dropped
+    /// inside quinn (its send buffer) or still waiting there when last read: the check that
+    /// quinn itself never holds datagrams back (no congestion-window or pacing queue).
+    pub quinn_datagrams_transmitted: u64,
+    /// Congestion events quinn's controller saw.
+    pub quinn_congestion_events: u64,
+    /// Packets quinn declared lost.
+    pub quinn_lost_packets: u64,
+    /// quinn's congestion window on the current connection \[bytes\].
+    pub quinn_cwnd_bytes: Option<u64>,
 }
 
 fn get(a: &AtomicI64) -> Option<i64> {
@@ -135,6 +165,10 @@ impl LinkStats {
             rtt_p50_ns: get(&self.rtt_p50_ns),
             clock_offset_ns: get(&self.clock_offset_ns),
             clock_delay_ns: get(&self.clock_delay_ns),
+            quinn_datagrams_transmitted: load(&self.quinn[0]),
+            quinn_congestion_events: load(&self.quinn[1]),
+            quinn_lost_packets: load(&self.quinn[2]),
+            quinn_cwnd_bytes: Some(load(&self.quinn_cwnd_bytes)).filter(|&c| c != u64::MAX),
         }
     }
 
@@ -197,6 +231,9 @@ pub struct DatagramLink {
     published: [u64; 5],
     rtt_samples: u64,
     rtt_window: Vec<i64>,
+    /// The connection datagrams are sent on (from the first send), for quinn's statistics.
+    connection: Option<quinn::Connection>,
+    sends: u64,
 }
 
 impl DatagramLink {
@@ -211,7 +248,33 @@ impl DatagramLink {
             published,
             rtt_samples: 0,
             rtt_window: Vec::with_capacity(RTT_WINDOW),
+            connection: None,
+            sends: 0,
         }
+    }
+
+    /// Publishes quinn's statistics of the connection (also done every [`QUINN_EVERY`] sends and
+    /// when the link is dropped).
+    pub fn publish_quinn(&self) {
+        let Some(connection) = &self.connection else {
+            return;
+        };
+        let s = connection.stats();
+        let values = [
+            s.frame_tx.datagram,
+            s.path.congestion_events,
+            s.path.lost_packets,
+        ];
+        for ((target, base), value) in self
+            .stats
+            .quinn
+            .iter()
+            .zip(&self.stats.quinn_base)
+            .zip(values)
+        {
+            target.store(base.load(Relaxed) + value, Relaxed);
+        }
+        self.stats.quinn_cwnd_bytes.store(s.path.cwnd, Relaxed);
     }
 
     /// Fills `header` for a datagram sent now: sequence number, send time and echo from the
@@ -228,6 +291,13 @@ impl DatagramLink {
         encode: impl FnOnce(&mut Vec<u8>),
     ) -> SendOutcome {
         encode(&mut self.buf);
+        if self.connection.is_none() {
+            self.connection = Some(connection.clone());
+        }
+        self.sends += 1;
+        if self.sends.is_multiple_of(QUINN_EVERY) {
+            self.publish_quinn();
+        }
         let outcome = if connection
             .max_datagram_size()
             .is_none_or(|max| self.buf.len() > max)
@@ -309,6 +379,11 @@ impl Drop for DatagramLink {
         for (base, target) in self.stats.base.iter().zip(self.stats.sequence_counters()) {
             base.store(target.load(Relaxed), Relaxed);
         }
+        self.publish_quinn();
+        for (base, target) in self.stats.quinn_base.iter().zip(&self.stats.quinn) {
+            base.store(target.load(Relaxed), Relaxed);
+        }
+        self.stats.quinn_cwnd_bytes.store(u64::MAX, Relaxed);
         self.stats.clear_session();
     }
 }

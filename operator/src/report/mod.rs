@@ -377,6 +377,24 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         "  late / lost / duplicate / garbage",
         format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
     );
+    // What quinn itself did with the datagrams it was handed: every one on the wire (none held
+    // back by a congestion window or pacing), no congestion events.
+    let quinn = |l: &LinkReport| {
+        format!(
+            "{} of {} / {} / {}",
+            l.quinn_datagrams_transmitted, l.sent, l.quinn_congestion_events, l.quinn_lost_packets
+        )
+    };
+    row(
+        "  quinn, operator: on the wire / congestion events / lost packets",
+        quinn(l),
+    );
+    if let Some(t) = &r.telerobot {
+        row(
+            "  quinn, telerobot: on the wire / congestion events / lost packets",
+            quinn(&t.link),
+        );
+    }
     row(
         "RTT smoothed / min",
         format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
