@@ -252,6 +252,12 @@ fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfi
     }
     if let Some((flag, v)) = get("distribution") {
         c.distribution = Distribution::from_name_or_path(v).with_context(|| format!("--{flag}"))?;
+        if c.jitter_ns == 0 {
+            bail!(
+                "--{flag} `{v}` shapes the jitter, but the jitter is 0: give --jitter too \
+                 (tc netem refuses a distribution without one)"
+            );
+        }
     }
     if let Some((flag, v)) = get("order") {
         c.keep_order = match v {
@@ -451,6 +457,12 @@ mod tests {
     #[test]
     fn errors_name_the_flag_the_value_and_what_was_expected() {
         let message = |args: &[&str]| format!("{:#}", parse(args).unwrap_err());
+        let m = message(&["--delay", "10ms", "--distribution", "normal"]);
+        assert!(
+            m.contains("--distribution `normal`") && m.contains("--jitter"),
+            "{m}"
+        );
+        assert!(parse(&["--jitter", "2ms", "--distribution", "normal"]).is_ok());
         let m = message(&["--up-delay", "40"]);
         assert!(
             m.contains("--up-delay") && m.contains("`40`") && m.contains("400ms"),

@@ -156,8 +156,9 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         tangent2: [0.0, 1.0, 0.0],
     });
     let (series, missing_ticks) = series(facts, rec, frame);
-    // The delay takes the run's set delay when known (the demo), else the measured one: the
-    // thesis's contact-latency figure is two of it.
+    // The delay takes the run's set delay when known (the demo), else the measured one (a
+    // delay, so not below 0: the estimate spreads ±2 ms around a zero delay): the thesis's
+    // contact-latency figure is two of it.
     let estimate = measured_delay(facts, rec, &series);
     let info = RunInfo {
         experiment: facts.experiment.clone(),
@@ -167,7 +168,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         seed: facts.seed,
         delay_ms: facts
             .set_delay_ms
-            .or(estimate.map(|e| e.delay_ms))
+            .or(estimate.map(|e| e.delay_ms.max(0.0)))
             .unwrap_or(0.0),
     };
     let parameters = match (&facts.truth, end.parameters) {
