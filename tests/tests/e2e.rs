@@ -440,3 +440,51 @@ fn garbage_datagrams_to_either_port_are_counted_and_ignored() {
     assert_eq!(outcome.report.sessions, 1);
     assert!(outcome.report.loop_timing.ticks >= 2900);
 }
+
+/// The README's first command, `operator demo`, end to end at a short length: the JSON on stdout
+/// parses and names the set delay's measurement, and the report, series and plots are written.
+#[test]
+fn the_demo_command_runs_and_writes_its_report() {
+    use clap::Parser;
+    let _serial = serial();
+    let out = std::env::temp_dir().join(format!("mmt-demo-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let cli = operator::cli::Cli::try_parse_from([
+        "operator",
+        "demo",
+        "--seconds",
+        "5",
+        "--delay-ms",
+        "50",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .unwrap();
+    let operator::cli::Command::Demo(args) = cli.command else {
+        panic!("not the demo")
+    };
+    let mut stdout = Vec::new();
+    operator::cli::demo(&args, rt::Shutdown::new(), &mut stdout).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&stdout).expect("stdout is JSON");
+    let delay = json["measured_delay_ms"].as_f64();
+    assert!(delay.is_some_and(|d| (d - 50.0).abs() <= 5.0), "{delay:?}");
+    for key in ["rms_error_pct_after_stable", "bands", "loop_timing", "link"] {
+        assert!(!json[key].is_null(), "{key} missing or null");
+    }
+    for file in [
+        "report.json",
+        "series.csv",
+        "force.svg",
+        "force.png",
+        "error.svg",
+        "spectrum.svg",
+    ] {
+        let len = std::fs::metadata(out.join(file)).map_or(0, |m| m.len());
+        assert!(len > 0, "{file} not written");
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["measured_delay_ms"], json["measured_delay_ms"]);
+    std::fs::remove_dir_all(&out).unwrap();
+}
