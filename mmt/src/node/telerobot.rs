@@ -251,6 +251,8 @@ impl TelerobotNode {
                     sensor_orientation_xyzw: pose.quaternion_xyzw(),
                     points: frame.into_points(),
                 }));
+                // Reserved here, once per frame, so that no proxy step allocates.
+                self.proxy.prepare(&index);
                 self.cloud = Some(Arc::new(index));
             }
             Err(_) => self.stats.rejected_clouds += 1,

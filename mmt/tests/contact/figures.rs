@@ -65,6 +65,55 @@ fn no_punch_through_a_plane_at_up_to_1_m_per_s_with_noise_up_to_half_the_band() 
     }
 }
 
+/// A HIP jump of any length is swept in segments of `r3`, at most four per tick (so no query
+/// grows with the jump): a 1 m jump through a plane never leaves the proxy on the far side, and
+/// an unobstructed 30 cm jump is followed at `4 r3` per tick until the proxy is at the HIP.
+#[test]
+fn long_jumps_are_swept_in_bounded_pieces_without_punching_through() {
+    let c = config();
+    let per_tick = 4.0 * c.r3_m;
+    for (k, normal) in NORMALS.iter().enumerate() {
+        let n = unit(*normal);
+        let origin = [0.0, 0.01 * k as f64, 0.1];
+        let object = plane(n, origin, 0.12);
+        let index = index(&object, &Sensor::noisy((c.r2_m - c.r1_m) / 2.0));
+        let (above, below) = (add(origin, scale(n, 0.5)), add(origin, scale(n, -0.5)));
+        let mut hips = vec![above; 2];
+        hips.extend(std::iter::repeat_n(below, 30));
+        let out = run(c, &index, &hips);
+        for (tick, o) in out.iter().enumerate() {
+            let height = dot(sub(o.proxy_m, origin), n);
+            assert!(height > 0.0, "normal {n:?}, tick {tick}: {height} m");
+            assert_finite(o);
+        }
+        // It reaches the surface: ⌈0.5 m / 4 r3⌉ ticks of free sweeping.
+        let reached = (0.5 / per_tick).ceil() as usize;
+        assert!(
+            out[2 + reached].state.is_touching(),
+            "{:?}",
+            out[2 + reached]
+        );
+
+        // Sideways, parallel to the plane 50 mm above it: nothing in the way.
+        let (t1, _) = tangents(n);
+        let start = add(origin, scale(n, 0.05));
+        let end = add(start, scale(t1, 0.3));
+        let mut hips = vec![start];
+        hips.extend(std::iter::repeat_n(end, 10));
+        let out = run(c, &index, &hips);
+        let needed = (0.3 / per_tick).ceil() as usize;
+        for (tick, o) in out.iter().enumerate().skip(1) {
+            let remaining = norm(sub(end, o.proxy_m));
+            let expected = (0.3 - per_tick * tick as f64).max(0.0);
+            assert!(
+                (remaining - expected).abs() < 1e-9,
+                "tick {tick}: {remaining}"
+            );
+        }
+        assert_eq!(out[needed].proxy_m, end);
+    }
+}
+
 fn test_box() -> SceneObject {
     SceneObject::fixed(
         Shape::Box {
