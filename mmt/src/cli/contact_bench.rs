@@ -192,6 +192,7 @@ fn measure(args: &Args) -> Result<Measured> {
 
     // Pass 1: every tick on the kd-tree, timed.
     let mut proxy = Proxy::new(w.config, w.hips[0])?;
+    proxy.prepare(&kd);
     let mut kd_ticks = Vec::with_capacity(w.hips.len());
     let mut touching = 0;
     for hip in &w.hips {
@@ -207,12 +208,19 @@ fn measure(args: &Args) -> Result<Measured> {
         .map(|i| i * args.steps / args.brute_steps)
         .collect();
     let mut proxy = Proxy::new(w.config, w.hips[0])?;
+    proxy.prepare(&kd);
     let mut brute_timed = Vec::with_capacity(brute_ticks.len());
     let mut brute_queried = Vec::with_capacity(brute_ticks.len());
     let mut max_gap_m: f64 = 0.0;
     let mut picks = brute_ticks.iter().peekable();
     for (k, hip) in w.hips.iter().enumerate() {
-        let twin = picks.next_if_eq(&&k).map(|_| proxy.clone());
+        let twin = picks.next_if_eq(&&k).map(|_| {
+            // A clone's buffer holds only what it contains: reserve, so the timed step does
+            // not allocate.
+            let mut twin = proxy.clone();
+            twin.prepare(&brute);
+            twin
+        });
         let (kd_tick, kd_out) = timed_step(&mut proxy, *hip, &kd);
         if let Some(mut twin) = twin {
             let (tick, out) = timed_step(&mut twin, *hip, &brute);
@@ -295,6 +303,10 @@ impl<N: Neighbours> Neighbours for Counted<'_, N> {
 
     fn len(&self) -> usize {
         self.inner.len()
+    }
+
+    fn max_within(&self, radius_m: f64) -> usize {
+        self.inner.max_within(radius_m)
     }
 }
 
