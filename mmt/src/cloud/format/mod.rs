@@ -125,17 +125,25 @@ pub enum ParseError {
         /// The missing axis.
         axis: char,
     },
-    /// The declared number of points cannot fit in the data that follows the header.
+    /// The declared number of fixed-size records cannot fit in the data that follows the
+    /// header.
     #[error(
-        "{format}: header declares {declared} points of {record_bytes} bytes ({needed} bytes), \
-         but only {available} bytes of data follow"
+        "{format} {at}: data ends in {element} record {record}: the header declares {declared} \
+         records of {record_bytes} bytes ({needed} bytes), but only {available} bytes of data \
+         follow"
     )]
     CountExceedsData {
         /// File format.
         format: Format,
-        /// Points declared.
+        /// Start of the first incomplete record.
+        at: Location,
+        /// The element (`vertex`, `points`, …).
+        element: String,
+        /// 0-based index of the first incomplete record.
+        record: u64,
+        /// Records declared.
         declared: u64,
-        /// Bytes per point.
+        /// Bytes per record.
         record_bytes: usize,
         /// Bytes the declaration needs.
         needed: u128,

@@ -261,8 +261,14 @@ fn read_binary(
     if let Some(size) = el.fixed_size() {
         let needed = u128::from(el.count) * size as u128;
         if needed > available as u128 {
+            // `size > 0` here (else nothing is needed); the first incomplete record starts
+            // within the data, or right at its end.
+            let whole = available / size;
             return Err(ParseError::CountExceedsData {
                 format: ctx.format,
+                at: Location::Byte(*pos + whole * size),
+                element: el.name.clone(),
+                record: whole as u64,
                 declared: el.count,
                 record_bytes: size,
                 needed,

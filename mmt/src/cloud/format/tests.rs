@@ -67,8 +67,21 @@ fn truncated_files_are_rejected_with_the_position() {
         let err = parse(&cut).unwrap_err();
         let msg = err.to_string();
         match err {
-            ParseError::CountExceedsData { declared: 57, .. } => {
-                assert!(msg.contains("57 points of 12 bytes"), "{name}: {msg}")
+            ParseError::CountExceedsData {
+                declared: 57,
+                record: 56,
+                at,
+                ..
+            } => {
+                // The last record starts 12 bytes before the end of the uncut file.
+                let offset = bytes.len() - 12;
+                assert_eq!(at, Location::Byte(offset), "{name}");
+                assert!(
+                    msg.contains(&format!("byte {offset}: data ends in"))
+                        && msg.contains("record 56")
+                        && msg.contains("57 records of 12 bytes"),
+                    "{name}: {msg}"
+                )
             }
             ParseError::WrongValueCount {
                 record: 56,
@@ -81,6 +94,17 @@ fn truncated_files_are_rejected_with_the_position() {
                 assert!(msg.contains("line"), "{msg}");
             }
             other => panic!("{name}: unexpected {other:?}"),
+        }
+        // Cut 30 bytes into the data's end: records 54 to 56 are incomplete, 54 first.
+        if !name.contains("ascii") {
+            let err = parse(&bytes[..bytes.len() - 30]).unwrap_err();
+            let offset = bytes.len() - 3 * 12;
+            assert!(
+                matches!(err, ParseError::CountExceedsData { record: 54, at, .. } if at == Location::Byte(offset)),
+                "{name}: {err:?}"
+            );
+            let msg = err.to_string();
+            assert!(msg.contains(&format!("byte {offset}")), "{name}: {msg}");
         }
         // Cut after a whole record: a missing line / missing bytes.
         if name.contains("ascii") {
