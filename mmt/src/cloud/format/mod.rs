@@ -2,7 +2,8 @@
 //!
 //! The parsers work on bytes (`&[u8]`, or anything `Read` through [`read_cloud`]) and read the
 //! `x`, `y`, `z` of every point; every other property is skipped by its declared type and size
-//! (PLY lists, PCD fields of any `SIZE`/`COUNT`). Nothing in a file can make them panic or
+//! (PLY lists, PCD fields of any `SIZE`/`COUNT`) — in text data after checking that it parses
+//! as that type (integers in range, floats that parse). Nothing in a file can make them panic or
 //! allocate beyond the file's own size: a declared count is checked against the bytes that follow
 //! before anything is reserved. Every error names where (line for text, byte offset for binary
 //! data) and what was expected; [`load_path`] — the one function here that touches the file
@@ -197,12 +198,20 @@ pub enum ParseError {
         expected: usize,
     },
     /// A value is not a number of its declared type.
-    #[error("{format} {at}: {element} record {record}: {found:?} is not a valid {expected}")]
+    #[error(
+        "{format} {at}, column {column} (`{property}`): {element} record {record}: {found:?} is \
+         not a valid {expected}"
+    )]
     NotANumber {
         /// File format.
         format: Format,
         /// Where.
         at: Location,
+        /// 1-based position of the value in its line.
+        column: usize,
+        /// The property (PLY) or field (PCD) it belongs to; `name[i]` for an array or list item,
+        /// `name (list length)` for a list's length.
+        property: String,
         /// The element.
         element: String,
         /// 0-based record index.
@@ -210,7 +219,7 @@ pub enum ParseError {
         /// The text found.
         found: String,
         /// The expected type.
-        expected: String,
+        expected: &'static str,
     },
     /// A coordinate is NaN or infinite (with [`NonFinitePolicy::Reject`]).
     #[error("{format} {at}: point {point}: {axis} = {value}, expected a finite number")]
