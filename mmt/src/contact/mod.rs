@@ -17,6 +17,7 @@
 //! Units: metres, seconds; every position is in the world frame of the cloud.
 
 mod config;
+mod density;
 pub mod distance;
 mod neighbours;
 mod proxy;

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use thiserror::Error;
 
+use super::density::DensityBound;
 use crate::cloud::CloudFrame;
 use crate::vec3::{self, V3};
 
@@ -35,6 +36,14 @@ pub trait Neighbours {
 
     /// Number of points.
     fn len(&self) -> usize;
+
+    /// At least the number of points a query of `radius_m` [m] can visit, wherever its centre:
+    /// what the proxy reserves for its neighbour buffer ([`crate::contact::Proxy::prepare`]).
+    /// Every point by default; [`CloudIndex`] bounds it from the cloud's density.
+    fn max_within(&self, radius_m: f64) -> usize {
+        let _ = radius_m;
+        self.len()
+    }
 
     /// No points.
     fn is_empty(&self) -> bool {
@@ -74,6 +83,7 @@ pub struct CloudIndex {
     points: Vec<[f32; 3]>,
     /// World → tree-frame rotation, row-major.
     to_tree: [[f64; 3]; 3],
+    density: DensityBound,
     timestamp_ns: i64,
     id: u64,
 }
@@ -96,8 +106,8 @@ impl std::fmt::Debug for CloudIndex {
 }
 
 impl CloudIndex {
-    /// Builds the kd-tree of a frame (serial; about 20–30 ms for 640×480 points on one core,
-    /// see `mmt contact-bench`).
+    /// Builds the kd-tree of a frame and counts its density (serial; about 20–30 ms for
+    /// 640×480 points on one core, see `mmt contact-bench`).
     pub fn build(frame: &CloudFrame) -> Result<Self, IndexError> {
         let points = frame.points().to_vec();
         let to_tree = tree_rotation(&points);
@@ -115,10 +125,12 @@ impl CloudIndex {
                 }
             })?)
         };
+        let density = DensityBound::new(&points);
         Ok(Self {
             tree,
             points,
             to_tree,
+            density,
             timestamp_ns: frame.timestamp_ns(),
             id: next_cloud_id(),
         })
@@ -138,6 +150,7 @@ impl CloudIndex {
     pub fn brute_force(&self) -> BruteForce<'_> {
         BruteForce {
             points: &self.points,
+            density: self.density,
             id: self.id,
         }
     }
@@ -175,20 +188,27 @@ impl Neighbours for CloudIndex {
     fn len(&self) -> usize {
         self.points.len()
     }
+
+    fn max_within(&self, radius_m: f64) -> usize {
+        self.density.max_within(radius_m)
+    }
 }
 
 /// Every point tested in turn: the reference the kd-tree must agree with.
 #[derive(Clone, Copy, Debug)]
 pub struct BruteForce<'a> {
     points: &'a [[f32; 3]],
+    density: DensityBound,
     id: u64,
 }
 
 impl<'a> BruteForce<'a> {
-    /// Scans `points` [m] (at most `u32::MAX` of them are visited).
+    /// Scans `points` [m] (at most `u32::MAX` of them are visited). Their density is not
+    /// counted: [`Neighbours::max_within`] is every point.
     pub fn new(points: &'a [[f32; 3]]) -> Self {
         Self {
             points,
+            density: DensityBound::everything(points.len()),
             id: next_cloud_id(),
         }
     }
@@ -215,6 +235,10 @@ impl Neighbours for BruteForce<'_> {
 
     fn len(&self) -> usize {
         self.points.len()
+    }
+
+    fn max_within(&self, radius_m: f64) -> usize {
+        self.density.max_within(radius_m)
     }
 }
 

@@ -17,6 +17,11 @@
 //!   within `(r1+r2)/2` of the swept segment; they all lie in the ball around the segment's
 //!   midpoint of radius `‖u‖/2 + (r1+r2)/2`. The query takes `‖u‖/2 + r3`, which also covers
 //!   the `r3` ball wherever the proxy stops.
+//! - **Long sweeps.** A sweep is cut into segments of at most `r3`, one query each, so no query
+//!   is larger than `1.5 r3` plus the reuse margin whatever the HIP does; after
+//!   [`MAX_SWEEP_SEGMENTS`] segments (`4 r3`, 48 mm at the defaults: 48 m/s at 1 kHz) the proxy
+//!   stops, clear of every point as after any sweep, and continues on the next tick. Each
+//!   segment is swept exactly, so this changes no outcome but the tick a long jump lands in.
 //! - **Sign in eq. 22.** Eq. 14 makes the normal point out of the surface, so the operator
 //!   pushes in when `n̂ᵀu < 0` (the text's `> 0` assumes the opposite normal); pushing in
 //!   slides along the tangent plane, pulling out moves along `u`.
@@ -35,8 +40,11 @@
 //!
 //! # Allocation
 //!
-//! The neighbour buffer lives in the proxy and is reused: it grows to the largest
-//! neighbourhood seen, after which steps allocate nothing (tested in `tests/contact_alloc.rs`).
+//! The neighbour buffer lives in the proxy and is reused. [`Proxy::prepare`], called when a new
+//! cloud is set, reserves it for the most points any query of the proxy can return on that
+//! cloud ([`Neighbours::max_within`], from the cloud's density); steps on it then never
+//! allocate (tested in `tests/contact_alloc.rs` on a 0.5 mm grid, 5 cm jumps and a small box).
+//! Without `prepare` the buffer grows to the largest neighbourhood seen.
 //! When the cloud ([`Neighbours::cloud_id`]) and the proxy position are unchanged since the end
 //! of the last step, the step starts from that step's final query and surface instead of
 //! repeating them: a sliding or free proxy costs one radius query per step, a resting one none.
@@ -51,9 +59,18 @@ use crate::vec3::{self, V3};
 /// `n̂·s` of order 1e-19 m) and are not taken: they would only defeat the query reuse.
 const NEGLIGIBLE_MOVE_M: f64 = 1e-9;
 
-/// Initial capacity of the neighbour buffer: the default 12 mm ball holds ~450 points of a
-/// 1 mm grid; a sweep's ball a few hundred more.
+/// Initial capacity of the neighbour buffer, before [`Proxy::prepare`]: the default 12 mm ball
+/// holds ~450 points of a 1 mm grid; a sweep's ball a few hundred more.
 const INITIAL_NEIGHBOURS: usize = 1024;
+
+/// Longest stretch of a sweep answered by one query, as a fraction of `r3`: the query is then
+/// at most `1.5 r3` (plus the margin) in radius, about twice the points of the `r3` ball on a
+/// surface.
+const SWEEP_SEGMENT_OF_R3: f64 = 1.0;
+
+/// Most segments one sweep covers in a tick; a longer move continues on the next tick. Bounds
+/// the queries per step (two sweeps: the velocity step and the free step).
+const MAX_SWEEP_SEGMENTS: usize = 4;
 
 /// A query asks for this fraction of `r3` beyond the ball it needs, so that the next ticks,
 /// while the proxy moves less than that, reuse its answer instead of querying again (every pass
@@ -98,6 +115,16 @@ impl Proxy {
         self.normal_speed = 0.0;
         self.last_normal = None;
         Ok(())
+    }
+
+    /// Reserves the neighbour buffer for the largest answer any query of this proxy can get
+    /// from `cloud` (its [`Neighbours::max_within`] at the largest query radius), so that no
+    /// step on `cloud` allocates. Call it when a new cloud is set, off the per-step path: it may
+    /// allocate. Capacity only grows.
+    pub fn prepare<N: Neighbours>(&mut self, cloud: &N) {
+        let need = cloud.max_within(max_query_radius_m(&self.config));
+        let buf = &mut self.scratch.buf;
+        buf.reserve(need.saturating_sub(buf.len()));
     }
 
     /// The parameters.
@@ -196,29 +223,49 @@ impl Proxy {
         }
     }
 
-    /// How far the proxy can move along the unit `dir`, at most `len` [m], before a point comes
-    /// within `(r1+r2)/2` (eq. 16, solved by eq. 28 per point).
+    /// How far the proxy can move along the unit `dir`, at most `len` [m] and at most
+    /// [`MAX_SWEEP_SEGMENTS`] segments of `r3`, before a point comes within `(r1+r2)/2` (eq. 16,
+    /// solved by eq. 28 per point).
     ///
-    /// The points that can stop it lie within `(r1+r2)/2` of the segment, so within
-    /// `len/2 + (r1+r2)/2` of its midpoint. The query asks for `len/2 + r3` instead, which also
-    /// holds the `r3` ball around wherever the proxy stops: the surface there is then computed
-    /// without a second query.
+    /// The points that can stop it in a segment lie within `(r1+r2)/2` of the segment, so
+    /// within `seg/2 + (r1+r2)/2` of its midpoint. The query asks for `seg/2 + r3` instead,
+    /// which also holds the `r3` ball around wherever the proxy stops in that segment: the
+    /// surface there is then computed without a second query. A point that stops the proxy in an
+    /// earlier segment is found by that segment's query, so the first segment with a touch ends
+    /// the sweep.
     fn sweep<N: Neighbours>(&mut self, cloud: &N, dir: V3, len: f64) -> f64 {
-        let c = &self.config;
+        let c = self.config;
         let a = c.rest_distance_m();
         let from = self.position;
-        let mid = vec3::add(from, vec3::scale(dir, 0.5 * len));
-        self.scratch.ensure(
-            cloud,
-            mid,
-            0.5 * len + c.r3_m.max(a),
-            QUERY_MARGIN_OF_R3 * c.r3_m,
-        );
-        self.scratch
-            .buf
-            .iter()
-            .filter_map(|nb| first_touch(a, vec3::sub(nb.point, from), dir))
-            .fold(len, f64::min)
+        let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
+        let reach = len.min(seg * MAX_SWEEP_SEGMENTS as f64);
+        let segments = ((reach / seg).ceil() as usize).clamp(1, MAX_SWEEP_SEGMENTS);
+        let mut touch = f64::INFINITY;
+        for k in 0..segments {
+            let start = k as f64 * seg;
+            let end = if k + 1 == segments {
+                reach
+            } else {
+                (k + 1) as f64 * seg
+            };
+            let mid = vec3::add(from, vec3::scale(dir, 0.5 * (start + end)));
+            self.scratch.ensure(
+                cloud,
+                mid,
+                0.5 * (end - start) + c.r3_m.max(a),
+                QUERY_MARGIN_OF_R3 * c.r3_m,
+            );
+            touch = self
+                .scratch
+                .buf
+                .iter()
+                .filter_map(|nb| first_touch(a, vec3::sub(nb.point, from), dir))
+                .fold(touch, f64::min);
+            if touch <= end {
+                break;
+            }
+        }
+        touch.min(reach)
     }
 
     /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away.
@@ -261,6 +308,13 @@ fn contact_step(u: V3, normal: Option<V3>, c: &ProxyConfig) -> V3 {
         }
         _ => vec3::scale(u, d / len),
     }
+}
+
+/// The largest ball the proxy queries [m]: a sweep segment's (`seg/2 + r3`) or the surface's
+/// (`r3`), plus the reuse margin.
+fn max_query_radius_m(c: &ProxyConfig) -> f64 {
+    let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
+    0.5 * seg + c.r3_m.max(c.rest_distance_m()) + QUERY_MARGIN_OF_R3 * c.r3_m
 }
 
 fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {

@@ -23,7 +23,8 @@ pub struct Workload {
     pub config: ProxyConfig,
 }
 
-/// A plane of exactly `points` points (a `⌈√N⌉`-wide grid cut to `N`), Gaussian noise of
+/// A plane of exactly `points` points (a `⌈√N⌉`-wide grid, at least 2 × 2, cut to `N`: one or
+/// two points are a corner of a 2 × 2 patch), Gaussian noise of
 /// `noise_std_m` [m] per coordinate from `seed`, and `steps` HIP positions: 10 mm above to
 /// 10 mm below the plane at 2 Hz while circling at 0.25 Hz over the middle of the patch (at
 /// most 0.15 m/s), so the proxy makes and breaks contact and slides over fresh points.
@@ -33,8 +34,8 @@ pub fn plane_sweep(
     noise_std_m: f64,
     seed: u64,
 ) -> Result<Workload, SyntheticError> {
-    let nx = (points as f64).sqrt().ceil().max(1.0);
-    let ny = (points as f64 / nx).ceil().max(1.0);
+    let nx = (points as f64).sqrt().ceil().max(2.0);
+    let ny = (points as f64 / nx).ceil().max(2.0);
     let scene = SyntheticCloud {
         noise_std_m,
         ..SyntheticCloud::single(
@@ -89,5 +90,20 @@ mod tests {
             .count();
         // Below the plane for about half of each 0.5 s period.
         assert!((600..1_400).contains(&touching), "{touching}");
+    }
+
+    /// Regression: one or two points made a grid one point wide, refused as
+    /// `plane.size_x_m = 0`.
+    #[test]
+    fn tiny_workloads_have_exactly_n_points() {
+        for points in 1..=5 {
+            let w = plane_sweep(points, 10, 0.0005, 3).unwrap();
+            assert_eq!(w.frame.len(), points);
+            let index = CloudIndex::build(&w.frame).unwrap();
+            let mut proxy = Proxy::new(w.config, w.hips[0]).unwrap();
+            for hip in &w.hips {
+                proxy.step(*hip, &index);
+            }
+        }
     }
 }

@@ -199,7 +199,10 @@ impl OperatorNode {
     }
 
     /// Installs an already built cloud index (built off the haptic thread, or shared).
+    /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is denser
+    /// than any before), so that no proxy step allocates.
     pub fn set_cloud(&mut self, index: Arc<CloudIndex>) {
+        self.proxy.prepare(index.as_ref());
         self.cloud = Some(index);
         self.stats.clouds += 1;
     }

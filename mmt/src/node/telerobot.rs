@@ -251,6 +251,8 @@ impl TelerobotNode {
                     sensor_orientation_xyzw: pose.quaternion_xyzw(),
                     points: frame.into_points(),
                 }));
+                // Reserved here, once per frame, so that no proxy step allocates.
+                self.proxy.prepare(&index);
                 self.cloud = Some(Arc::new(index));
             }
             Err(_) => self.stats.rejected_clouds += 1,
@@ -400,7 +402,10 @@ impl TelerobotNode {
 
     /// Installs a cloud index built off the real-time thread (the daemon's camera thread, which
     /// also sends the frame to the operator itself); `frame_id` is the id it was sent with.
+    /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is
+    /// denser than any before), so that no proxy step allocates.
     pub fn set_cloud(&mut self, index: Arc<CloudIndex>, frame_id: u64) {
+        self.proxy.prepare(index.as_ref());
         self.cloud = Some(index);
         self.frame_id = frame_id;
     }

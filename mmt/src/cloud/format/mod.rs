@@ -2,7 +2,8 @@
 //!
 //! The parsers work on bytes (`&[u8]`, or anything `Read` through [`read_cloud`]) and read the
 //! `x`, `y`, `z` of every point; every other property is skipped by its declared type and size
-//! (PLY lists, PCD fields of any `SIZE`/`COUNT`). Nothing in a file can make them panic or
+//! (PLY lists, PCD fields of any `SIZE`/`COUNT`) — in text data after checking that it parses
+//! as that type (integers in range, floats that parse). Nothing in a file can make them panic or
 //! allocate beyond the file's own size: a declared count is checked against the bytes that follow
 //! before anything is reserved. Every error names where (line for text, byte offset for binary
 //! data) and what was expected; [`load_path`] — the one function here that touches the file
@@ -125,17 +126,25 @@ pub enum ParseError {
         /// The missing axis.
         axis: char,
     },
-    /// The declared number of points cannot fit in the data that follows the header.
+    /// The declared number of fixed-size records cannot fit in the data that follows the
+    /// header.
     #[error(
-        "{format}: header declares {declared} points of {record_bytes} bytes ({needed} bytes), \
-         but only {available} bytes of data follow"
+        "{format} {at}: data ends in {element} record {record}: the header declares {declared} \
+         records of {record_bytes} bytes ({needed} bytes), but only {available} bytes of data \
+         follow"
     )]
     CountExceedsData {
         /// File format.
         format: Format,
-        /// Points declared.
+        /// Start of the first incomplete record.
+        at: Location,
+        /// The element (`vertex`, `points`, …).
+        element: String,
+        /// 0-based index of the first incomplete record.
+        record: u64,
+        /// Records declared.
         declared: u64,
-        /// Bytes per point.
+        /// Bytes per record.
         record_bytes: usize,
         /// Bytes the declaration needs.
         needed: u128,
@@ -189,12 +198,20 @@ pub enum ParseError {
         expected: usize,
     },
     /// A value is not a number of its declared type.
-    #[error("{format} {at}: {element} record {record}: {found:?} is not a valid {expected}")]
+    #[error(
+        "{format} {at}, column {column} (`{property}`): {element} record {record}: {found:?} is \
+         not a valid {expected}"
+    )]
     NotANumber {
         /// File format.
         format: Format,
         /// Where.
         at: Location,
+        /// 1-based position of the value in its line.
+        column: usize,
+        /// The property (PLY) or field (PCD) it belongs to; `name[i]` for an array or list item,
+        /// `name (list length)` for a list's length.
+        property: String,
         /// The element.
         element: String,
         /// 0-based record index.
@@ -202,7 +219,7 @@ pub enum ParseError {
         /// The text found.
         found: String,
         /// The expected type.
-        expected: String,
+        expected: &'static str,
     },
     /// A coordinate is NaN or infinite (with [`NonFinitePolicy::Reject`]).
     #[error("{format} {at}: point {point}: {axis} = {value}, expected a finite number")]

@@ -1,7 +1,7 @@
 //! PCD (Point Cloud Library, v0.7): header parser, data readers, writer.
 //!
 //! Reads the `x`, `y`, `z` fields (`COUNT 1`, any `TYPE`/`SIZE`); other fields are skipped by
-//! their `SIZE × COUNT`. `DATA ascii` and `DATA binary` (little-endian, as PCL writes it) are
+//! their `SIZE × COUNT` (in `DATA ascii`, after checking every value against its `TYPE`/`SIZE`). `DATA ascii` and `DATA binary` (little-endian, as PCL writes it) are
 //! read; `binary_compressed` is refused with a clear error. `VIEWPOINT` becomes
 //! [`LoadedCloud::viewpoint`].
 
@@ -238,6 +238,7 @@ fn points_element(seen: &Seen<'_>, data_line: usize) -> Result<Element, ParseErr
         name: "points".into(),
         count,
         fields,
+        names: names.iter().map(|n| (*n).to_owned()).collect(),
         xyz: Some(xyz),
     })
 }

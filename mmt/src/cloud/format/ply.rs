@@ -2,7 +2,8 @@
 //!
 //! Reads the `x`, `y`, `z` scalar properties of the `vertex` element, of any PLY scalar type.
 //! Other properties and other elements (faces, …) are skipped by their declared types, lists
-//! included, and checked for truncation. ASCII data is one record per line.
+//! included, and checked for truncation; in ASCII data (one record per line) every value is
+//! checked against its declared type.
 
 use std::fmt::Write as _;
 
@@ -123,6 +124,7 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
                     name: (*name).to_owned(),
                     count,
                     fields: Vec::new(),
+                    names: Vec::new(),
                     xyz: None,
                 });
                 names.push(Vec::new());
@@ -171,5 +173,8 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
     };
     let el = &mut elements[vertex];
     el.xyz = Some(records::find_xyz(Format::Ply, &names[vertex], &el.fields)?);
+    for (el, names) in elements.iter_mut().zip(names) {
+        el.names = names;
+    }
     Ok((encoding, elements))
 }

@@ -72,6 +72,54 @@ impl Scalar {
         })
     }
 
+    /// Parses a text value of this type: an integer within the type's range, or for the float
+    /// types any number `f64` parses (NaN and infinities included: the caller decides).
+    fn parse_text(self, token: &[u8]) -> Option<f64> {
+        let t = std::str::from_utf8(token).ok()?;
+        match self {
+            Scalar::I8 => t.parse::<i8>().ok().map(f64::from),
+            Scalar::U8 => t.parse::<u8>().ok().map(f64::from),
+            Scalar::I16 => t.parse::<i16>().ok().map(f64::from),
+            Scalar::U16 => t.parse::<u16>().ok().map(f64::from),
+            Scalar::I32 => t.parse::<i32>().ok().map(f64::from),
+            Scalar::U32 => t.parse::<u32>().ok().map(f64::from),
+            Scalar::I64 => t.parse::<i64>().ok().map(|v| v as f64),
+            Scalar::U64 => t.parse::<u64>().ok().map(|v| v as f64),
+            Scalar::F32 | Scalar::F64 => t.parse::<f64>().ok(),
+        }
+    }
+
+    /// What a text value of this type must look like, for errors.
+    fn text_expectation(self) -> &'static str {
+        match self {
+            Scalar::I8 => "int8 (an integer in -128 ..= 127)",
+            Scalar::U8 => "uint8 (an integer in 0 ..= 255)",
+            Scalar::I16 => "int16 (an integer in -32768 ..= 32767)",
+            Scalar::U16 => "uint16 (an integer in 0 ..= 65535)",
+            Scalar::I32 => "int32 (an integer in -2147483648 ..= 2147483647)",
+            Scalar::U32 => "uint32 (an integer in 0 ..= 4294967295)",
+            Scalar::I64 => "int64 (an integer in -9223372036854775808 ..= 9223372036854775807)",
+            Scalar::U64 => "uint64 (an integer in 0 ..= 18446744073709551615)",
+            Scalar::F32 => "float32 (a number)",
+            Scalar::F64 => "float64 (a number)",
+        }
+    }
+
+    /// What a list length of this type must look like, for errors.
+    fn length_expectation(self) -> &'static str {
+        match self {
+            Scalar::I8 => "list length (an int8 >= 0)",
+            Scalar::I16 => "list length (an int16 >= 0)",
+            Scalar::I32 => "list length (an int32 >= 0)",
+            Scalar::I64 => "list length (an int64 >= 0)",
+            Scalar::U8 => "list length (a uint8: 0 ..= 255)",
+            Scalar::U16 => "list length (a uint16: 0 ..= 65535)",
+            Scalar::U32 => "list length (a uint32: 0 ..= 4294967295)",
+            Scalar::U64 => "list length (a uint64 >= 0)",
+            Scalar::F32 | Scalar::F64 => "list length (an integer >= 0)",
+        }
+    }
+
     /// Reads a list length: an integer type holding a value >= 0.
     fn read_count(self, b: &[u8], big_endian: bool) -> Option<u64> {
         if matches!(self, Scalar::F32 | Scalar::F64) {
@@ -99,6 +147,8 @@ pub(super) struct Element {
     pub name: String,
     pub count: u64,
     pub fields: Vec<Field>,
+    /// The name of each field (for errors).
+    pub names: Vec<String>,
     /// Indices into `fields` of the scalar `x`, `y`, `z`, for the element holding the points.
     pub xyz: Option<[usize; 3]>,
 }
@@ -261,8 +311,14 @@ fn read_binary(
     if let Some(size) = el.fixed_size() {
         let needed = u128::from(el.count) * size as u128;
         if needed > available as u128 {
+            // `size > 0` here (else nothing is needed); the first incomplete record starts
+            // within the data, or right at its end.
+            let whole = available / size;
             return Err(ParseError::CountExceedsData {
                 format: ctx.format,
+                at: Location::Byte(*pos + whole * size),
+                element: el.name.clone(),
+                record: whole as u64,
                 declared: el.count,
                 record_bytes: size,
                 needed,
@@ -403,7 +459,8 @@ impl<'a> Iterator for Lines<'a> {
     }
 }
 
-/// Reads (or skips) the ASCII records of `el`, one non-blank line per record.
+/// Reads the ASCII records of `el`, one non-blank line per record: every value is checked
+/// against its declared type, the points of the element with `xyz` are kept.
 fn read_ascii(
     lines: &mut Lines<'_>,
     el: &Element,
@@ -429,53 +486,131 @@ fn read_ascii(
                 "another line".into(),
             ));
         };
-        let at = Location::Line(line_no);
         tokens.clear();
         tokens.extend(
             line.split(|b| b.is_ascii_whitespace())
                 .filter(|t| !t.is_empty()),
         );
-        let wrong_count = |expected: usize| ParseError::WrongValueCount {
-            format: ctx.format,
-            at,
-            element: el.name.clone(),
+        let mut row = TextRow {
+            ctx,
+            el,
+            at: Location::Line(line_no),
             record,
-            found: tokens.len(),
-            expected,
+            tokens: &tokens,
+            next: 0,
         };
-        let mut next = 0usize;
         let mut p = [0.0f64; 3];
         for (i, field) in el.fields.iter().enumerate() {
             match *field {
                 Field::Scalar(s) => {
+                    let v = row.value(s, i, None)?;
                     if let Some(axis) = el.xyz.and_then(|xyz| xyz.iter().position(|&j| j == i)) {
-                        let token = tokens.get(next).ok_or_else(|| wrong_count(next + 1))?;
-                        p[axis] = parse_f64(token)
-                            .ok_or_else(|| not_a_number(ctx, at, el, record, token, s.name()))?;
+                        p[axis] = v;
                     }
-                    next += 1;
                 }
-                Field::Array(_, n) => next = next.saturating_add(n),
-                Field::List { count, .. } => {
-                    let token = tokens.get(next).ok_or_else(|| wrong_count(next + 1))?;
-                    let n = std::str::from_utf8(token)
-                        .ok()
-                        .and_then(|t| t.parse::<u64>().ok())
-                        .ok_or_else(|| not_a_number(ctx, at, el, record, token, count.name()))?;
-                    next = next
-                        .saturating_add(1)
-                        .saturating_add(usize::try_from(n).unwrap_or(usize::MAX));
+                Field::Array(s, n) => {
+                    for k in 0..n {
+                        row.value(s, i, Some(k))?;
+                    }
+                }
+                Field::List { count, item } => {
+                    let n = row.list_length(count, i)?;
+                    for k in 0..n {
+                        row.value(item, i, Some(k))?;
+                    }
                 }
             }
         }
-        if next != tokens.len() {
-            return Err(wrong_count(next));
+        if row.next != tokens.len() {
+            return Err(row.wrong_count(row.next));
         }
         if el.xyz.is_some() {
-            push_point(ctx, at, record, p, sink)?;
+            push_point(ctx, row.at, record, p, sink)?;
         }
     }
     Ok(())
+}
+
+/// The values of one text record, taken in order and checked against their types.
+struct TextRow<'r, 'a> {
+    ctx: Ctx,
+    el: &'r Element,
+    at: Location,
+    record: u64,
+    tokens: &'r [&'a [u8]],
+    /// Index of the next token.
+    next: usize,
+}
+
+impl<'a> TextRow<'_, 'a> {
+    /// The next value, of type `s`, belonging to field `field` (item `item` of an array or
+    /// list).
+    fn value(&mut self, s: Scalar, field: usize, item: Option<usize>) -> Result<f64, ParseError> {
+        let token = self.take()?;
+        s.parse_text(token).ok_or_else(|| {
+            let name = self.field_name(field);
+            let property = match item {
+                Some(k) => format!("{name}[{k}]"),
+                None => name.to_owned(),
+            };
+            self.not_a_number(token, property, s.text_expectation())
+        })
+    }
+
+    /// The next value as the length of a list of field `field`: an integer of type `s`, >= 0,
+    /// at most the tokens left on the line (so a huge length fails here, not in a long loop).
+    fn list_length(&mut self, s: Scalar, field: usize) -> Result<usize, ParseError> {
+        let token = self.take()?;
+        let left = (self.tokens.len() - self.next) as f64;
+        match s.parse_text(token) {
+            Some(n) if n >= 0.0 && n <= left => Ok(n as usize),
+            Some(n) if n >= 0.0 => Err(self.wrong_count(self.next.saturating_add(n as usize))),
+            _ => {
+                let property = format!("{} (list length)", self.field_name(field));
+                Err(self.not_a_number(token, property, s.length_expectation()))
+            }
+        }
+    }
+
+    fn take(&mut self) -> Result<&'a [u8], ParseError> {
+        let token = self
+            .tokens
+            .get(self.next)
+            .copied()
+            .ok_or_else(|| self.wrong_count(self.next + 1))?;
+        self.next += 1;
+        Ok(token)
+    }
+
+    fn field_name(&self, field: usize) -> &str {
+        self.el.names.get(field).map_or("?", String::as_str)
+    }
+
+    fn wrong_count(&self, expected: usize) -> ParseError {
+        ParseError::WrongValueCount {
+            format: self.ctx.format,
+            at: self.at,
+            element: self.el.name.clone(),
+            record: self.record,
+            found: self.tokens.len(),
+            expected,
+        }
+    }
+
+    /// The value just taken is not a `expected`.
+    fn not_a_number(&self, token: &[u8], property: String, expected: &'static str) -> ParseError {
+        let shown = &token[..token.len().min(40)];
+        ParseError::NotANumber {
+            format: self.ctx.format,
+            at: self.at,
+            column: self.next,
+            property,
+            element: self.el.name.clone(),
+            record: self.record,
+            found: String::from_utf8_lossy(shown).into_owned(),
+            expected,
+        }
+    }
 }
 
 /// Fails if anything but whitespace follows the last record.
@@ -500,29 +635,6 @@ fn expect_binary_end(bytes: &[u8], pos: usize, ctx: Ctx, declared: u64) -> Resul
         })
     } else {
         Ok(())
-    }
-}
-
-fn parse_f64(token: &[u8]) -> Option<f64> {
-    std::str::from_utf8(token).ok()?.parse().ok()
-}
-
-fn not_a_number(
-    ctx: Ctx,
-    at: Location,
-    el: &Element,
-    record: u64,
-    token: &[u8],
-    ty: &str,
-) -> ParseError {
-    let shown = &token[..token.len().min(40)];
-    ParseError::NotANumber {
-        format: ctx.format,
-        at,
-        element: el.name.clone(),
-        record,
-        found: String::from_utf8_lossy(shown).into_owned(),
-        expected: ty.to_owned(),
     }
 }
 

@@ -67,8 +67,21 @@ fn truncated_files_are_rejected_with_the_position() {
         let err = parse(&cut).unwrap_err();
         let msg = err.to_string();
         match err {
-            ParseError::CountExceedsData { declared: 57, .. } => {
-                assert!(msg.contains("57 points of 12 bytes"), "{name}: {msg}")
+            ParseError::CountExceedsData {
+                declared: 57,
+                record: 56,
+                at,
+                ..
+            } => {
+                // The last record starts 12 bytes before the end of the uncut file.
+                let offset = bytes.len() - 12;
+                assert_eq!(at, Location::Byte(offset), "{name}");
+                assert!(
+                    msg.contains(&format!("byte {offset}: data ends in"))
+                        && msg.contains("record 56")
+                        && msg.contains("57 records of 12 bytes"),
+                    "{name}: {msg}"
+                )
             }
             ParseError::WrongValueCount {
                 record: 56,
@@ -81,6 +94,17 @@ fn truncated_files_are_rejected_with_the_position() {
                 assert!(msg.contains("line"), "{msg}");
             }
             other => panic!("{name}: unexpected {other:?}"),
+        }
+        // Cut 30 bytes into the data's end: records 54 to 56 are incomplete, 54 first.
+        if !name.contains("ascii") {
+            let err = parse(&bytes[..bytes.len() - 30]).unwrap_err();
+            let offset = bytes.len() - 3 * 12;
+            assert!(
+                matches!(err, ParseError::CountExceedsData { record: 54, at, .. } if at == Location::Byte(offset)),
+                "{name}: {err:?}"
+            );
+            let msg = err.to_string();
+            assert!(msg.contains(&format!("byte {offset}")), "{name}: {msg}");
         }
         // Cut after a whole record: a missing line / missing bytes.
         if name.contains("ascii") {
@@ -184,6 +208,109 @@ fn non_numeric_values_are_rejected_with_line_and_text() {
             "{msg}"
         );
     }
+}
+
+/// Regression: only x, y and z were parsed; other values and list items were counted, so
+/// `1 2 3 abc` under `property uchar red` loaded.
+#[test]
+fn every_text_value_is_checked_against_its_declared_type() {
+    let ply = |props: &str, row: &str| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+             property float z\n{props}end_header\n{row}\n"
+        )
+    };
+    let red = "property uchar red\n";
+    let list = "property list uchar int idx\n";
+    let pcd = |row: &str| {
+        format!(
+            "FIELDS x y z rgb fpfh\nSIZE 4 4 4 4 4\nTYPE F F F U F\nCOUNT 1 1 1 1 3\nWIDTH 1\n\
+             DATA ascii\n{row}\n"
+        )
+    };
+    // (file, line, column, property, found, expected)
+    let cases = [
+        (
+            ply(red, "1 2 3 abc"),
+            9,
+            4,
+            "red",
+            "abc",
+            "uint8 (an integer in 0 ..= 255)",
+        ),
+        (ply(red, "1 2 3 256"), 9, 4, "red", "256", "0 ..= 255"),
+        (ply(red, "1 2 3 -1"), 9, 4, "red", "-1", "0 ..= 255"),
+        (ply(red, "1 2 3 1.5"), 9, 4, "red", "1.5", "uint8"),
+        (ply(list, "1 2 3 2 5 x"), 9, 6, "idx[1]", "x", "int32"),
+        (ply(list, "1 2 3 2 5 6e3"), 9, 6, "idx[1]", "6e3", "int32"),
+        (
+            ply(list, "1 2 3 -2 5 6"),
+            9,
+            4,
+            "idx (list length)",
+            "-2",
+            "list length (a uint8: 0 ..= 255)",
+        ),
+        (
+            ply(list, "1 2 3 300"),
+            9,
+            4,
+            "idx (list length)",
+            "300",
+            "uint8",
+        ),
+        (
+            ply("property double intensity\n", "1 2 3 1.2.3"),
+            9,
+            4,
+            "intensity",
+            "1.2.3",
+            "float64 (a number)",
+        ),
+        (
+            pcd("1 2 3 4294967296 0 0 0"),
+            7,
+            4,
+            "rgb",
+            "4294967296",
+            "uint32",
+        ),
+        (pcd("1 2 3 7 0 zero 0"), 7, 6, "fpfh[1]", "zero", "float32"),
+    ];
+    for (text, line, column, property, found, expected) in cases {
+        let err = parse(text.as_bytes()).unwrap_err();
+        let msg = err.to_string();
+        let ParseError::NotANumber {
+            at,
+            column: c,
+            property: ref p,
+            found: ref f,
+            ..
+        } = err
+        else {
+            panic!("{text:?}: {err:?}");
+        };
+        assert_eq!(
+            (at, c, p.as_str(), f.as_str()),
+            (Location::Line(line), column, property, found),
+            "{text:?}"
+        );
+        assert!(
+            msg.contains(&format!("line {line}, column {column} (`{property}`)"))
+                && msg.contains(expected),
+            "{msg}"
+        );
+    }
+    // Other float columns only need to parse: NaN there is a value like any other.
+    let fine = parse(ply("property float intensity\n", "1 2 3 nan").as_bytes()).unwrap();
+    assert_eq!(fine.points, vec![[1.0, 2.0, 3.0]]);
+    let fine = parse(ply(red, "1 2 3 255").as_bytes()).unwrap();
+    assert_eq!(fine.points, vec![[1.0, 2.0, 3.0]]);
+    // Integer coordinates are integers too.
+    let int_x = ply("", "1 2 3").replace("property float x", "property int x");
+    assert!(parse(int_x.as_bytes()).is_ok());
+    let err = parse(int_x.replace("\n1 2 3", "\n1.5 2 3").as_bytes()).unwrap_err();
+    assert!(err.to_string().contains("column 1 (`x`)"), "{err}");
 }
 
 #[test]
@@ -412,6 +539,22 @@ fn load_path_names_the_file() {
         .to_string();
     assert!(
         msg.contains("bad.pcd") && msg.contains("line 6") && msg.contains("z = NaN"),
+        "{msg}"
+    );
+    let typed = dir.join("typed.ply");
+    std::fs::write(
+        &typed,
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nend_header\n1 2 3 abc\n",
+    )
+    .unwrap();
+    let msg = load_path(&typed, LoadOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("typed.ply")
+            && msg.contains("line 9, column 4 (`red`)")
+            && msg.contains("\"abc\" is not a valid uint8"),
         "{msg}"
     );
     let missing = dir.join("missing.ply");
