@@ -9,17 +9,17 @@
 //! edge `c` per axis and holds at most `(⌈2R/c⌉ + 1)³ · max_count(c)` points, where
 //! `max_count(c)` is the fullest cell. Counting on several cell sizes and taking the smallest
 //! bound keeps it within about ten to twenty times the true count on a plane (a ball of
-//! the proxy's size on a 1 mm grid: ~1,100 points, bound ~14,000, 440 kB of buffer) — loose, but
+//! the proxy's size on a 1 mm grid: ~1,100 points, bound ~16,000, 500 kB of buffer) — loose, but
 //! a bound, and only memory.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
 /// Edge of the finest grid's cells [m]. The proxy's queries are 12–20 mm at the default radii.
-const FINEST_CELL_M: f64 = 0.004;
+const FINEST_CELL_M: f64 = 0.016;
 
-/// Grids of edge `FINEST_CELL_M · 2^k` for `k < LEVELS` (4 to 64 mm).
-const LEVELS: usize = 5;
+/// Grids of edge `FINEST_CELL_M · 2^k` for `k < LEVELS` (16 to 64 mm).
+const LEVELS: usize = 3;
 
 /// The fullest cell of each grid, and the number of points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
