@@ -148,3 +148,33 @@ fn unknown_fields_and_bad_types_are_parse_errors() {
     let e = Scene::from_toml("this is not toml", "x.toml").unwrap_err();
     assert!(e.to_string().starts_with("x.toml"), "{e}");
 }
+
+#[test]
+fn physical_upper_limits_and_the_karnopp_bound_say_the_range() {
+    for (from, to, message) in [
+        (
+            "b_ground_ns_per_m = 60.0",
+            "b_ground_ns_per_m = 1e12",
+            "environment.b_ground_ns_per_m = 1000000000000.0 is out of range: expected at most 1e5 N·s/m",
+        ),
+        (
+            "k_contact_n_per_m = 500.0",
+            "k_contact_n_per_m = 1e9",
+            "environment.k_contact_n_per_m = 1000000000.0 is out of range: expected at most 1e7 N/m",
+        ),
+        (
+            "mass_kg = 1.0",
+            "mass_kg = 5000.0",
+            "environment.mass_kg = 5000.0 is out of range: expected at most 1000 kg",
+        ),
+        (
+            "coulomb_friction_n = 0.05",
+            "coulomb_friction_n = 0.5",
+            "environment.coulomb_friction_n = 0.5 (static_friction_n = 0.1) is out of range: \
+             expected ≤ environment.static_friction_n",
+        ),
+    ] {
+        let e = with(from, to).unwrap_err().to_string();
+        assert!(e.contains(message), "{e}");
+    }
+}

@@ -89,16 +89,64 @@ impl Scene {
         non_negative("environment.b_contact_ns_per_m", e.b_contact_ns_per_m)?;
         non_negative("environment.static_friction_n", e.static_friction_n)?;
         non_negative("environment.coulomb_friction_n", e.coulomb_friction_n)?;
-        field(
-            "environment.coulomb_friction_n",
-            e.coulomb_friction_n,
-            e.coulomb_friction_n <= e.static_friction_n,
-            "≤ environment.static_friction_n (Karnopp: dynamic friction does not exceed static)",
-        )?;
+        if e.coulomb_friction_n > e.static_friction_n {
+            return Err(SceneError::Field {
+                origin: String::new(),
+                field: "environment.coulomb_friction_n",
+                value: format!(
+                    "{} (static_friction_n = {})",
+                    e.coulomb_friction_n, e.static_friction_n
+                ),
+                expected: "≤ environment.static_friction_n (Karnopp: dynamic friction does not exceed static)",
+            });
+        }
         non_negative(
             "environment.stick_velocity_m_per_s",
             e.stick_velocity_m_per_s,
         )?;
+        // Physical upper limits: beyond them the object is not one a haptic device can touch
+        // (the renderer would clip it to nothing) or the numbers are a typo.
+        for (name, v, hi, expected) in [
+            ("environment.mass_kg", e.mass_kg, 1e3, "at most 1000 kg"),
+            (
+                "environment.k_ground_n_per_m",
+                e.k_ground_n_per_m,
+                1e7,
+                "at most 1e7 N/m",
+            ),
+            (
+                "environment.b_ground_ns_per_m",
+                e.b_ground_ns_per_m,
+                1e5,
+                "at most 1e5 N·s/m",
+            ),
+            (
+                "environment.k_contact_n_per_m",
+                e.k_contact_n_per_m,
+                1e7,
+                "at most 1e7 N/m",
+            ),
+            (
+                "environment.b_contact_ns_per_m",
+                e.b_contact_ns_per_m,
+                1e5,
+                "at most 1e5 N·s/m",
+            ),
+            (
+                "environment.static_friction_n",
+                e.static_friction_n,
+                1e4,
+                "at most 1e4 N",
+            ),
+            (
+                "environment.stick_velocity_m_per_s",
+                e.stick_velocity_m_per_s,
+                1.0,
+                "at most 1 m/s",
+            ),
+        ] {
+            field(name, v, v <= hi, expected)?;
+        }
         if e.anchored {
             for (name, v) in [
                 ("environment.mass_kg", e.mass_kg),
