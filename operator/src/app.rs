@@ -229,6 +229,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     final_link.quinn_datagrams_transmitted = closed.quinn_datagrams_transmitted;
     final_link.quinn_congestion_events = closed.quinn_congestion_events;
     final_link.quinn_lost_packets = closed.quinn_lost_packets;
+    final_link.max_gap_ms = closed.max_gap_ns as f64 / 1e6;
     let (Ok(end), Ok(recording)) = (end, recording) else {
         return Err(RunError::Io {
             what: "the haptic loop",

@@ -87,6 +87,9 @@ pub struct LinkReport {
     pub quinn_congestion_events: u64,
     /// Packets quinn declared lost.
     pub quinn_lost_packets: u64,
+    /// Longest time between two accepted datagrams within a session \[ms\]: the largest stall
+    /// of the stream.
+    pub max_gap_ms: f64,
 }
 
 impl From<LinkSnapshot> for LinkReport {
@@ -106,6 +109,7 @@ impl From<LinkSnapshot> for LinkReport {
             quinn_datagrams_transmitted: s.quinn_datagrams_transmitted,
             quinn_congestion_events: s.quinn_congestion_events,
             quinn_lost_packets: s.quinn_lost_packets,
+            max_gap_ms: s.max_gap_ns as f64 / 1e6,
         }
     }
 }

@@ -488,3 +488,32 @@ fn the_demo_command_runs_and_writes_its_report() {
     assert_eq!(report["measured_delay_ms"], json["measured_delay_ms"]);
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// 5 % loss and 2 ms jitter each way through the shim: the 1 kHz datagram streams never stall for
+/// 50 ms (quinn retransmits nothing of them and holds nothing back), and the model still renders.
+#[test]
+fn loss_and_jitter_do_not_stall_the_datagram_streams() {
+    let _serial = serial();
+    let (tr, shim, config) = through_shim(&Certs::new(), 50.0, 8.0);
+    let mut impaired = shim.config(Direction::Up);
+    impaired.loss = Loss::Random { probability: 0.05 };
+    impaired.jitter_ns = 2_000_000;
+    for d in Direction::ALL {
+        shim.set_config(d, impaired.clone()).unwrap();
+    }
+    let outcome = spawn_operator(config).join().unwrap().unwrap();
+    let summary = tr.stop();
+    shim.shutdown().unwrap();
+    let r = &outcome.report;
+    for (side, l) in [("operator", &r.link), ("telerobot", &summary.link)] {
+        eprintln!("{side}: longest gap {:.1} ms, {} lost", l.max_gap_ms, l.lost);
+        assert!(l.lost > 100, "{side}: the loss was applied: {l:?}");
+        assert!(
+            l.max_gap_ms > 0.0 && l.max_gap_ms < 50.0,
+            "{side}: longest gap {} ms",
+            l.max_gap_ms
+        );
+    }
+    let error = r.experiment.rms_error_pct_after_stable.unwrap_or(f64::NAN);
+    assert!(error < 15.0, "RMS error after stable {error} %");
+}

@@ -45,6 +45,8 @@ pub struct LinkStats {
     quinn_base: [AtomicU64; 3],
     /// quinn's congestion window of the current connection \[bytes\] (`u64::MAX`: none yet).
     quinn_cwnd_bytes: AtomicU64,
+    /// Longest time between two accepted datagrams of one session \[ns\] (0: none yet).
+    max_gap_ns: AtomicI64,
 }
 
 /// What [`LinkStats::quinn`] counts, from `quinn::Connection::stats()`: datagram frames
@@ -80,6 +82,7 @@ impl Default for LinkStats {
             quinn: Default::default(),
             quinn_base: Default::default(),
             quinn_cwnd_bytes: AtomicU64::new(u64::MAX),
+            max_gap_ns: AtomicI64::new(0),
         }
     }
 }
@@ -130,6 +133,9 @@ pub struct LinkSnapshot {
     pub quinn_lost_packets: u64,
     /// quinn's congestion window on the current connection \[bytes\].
     pub quinn_cwnd_bytes: Option<u64>,
+    /// Longest time between two accepted datagrams within a session \[ns\]: the largest stall
+    /// of the stream the loops are fed (0 before two arrived).
+    pub max_gap_ns: i64,
 }
 
 fn get(a: &AtomicI64) -> Option<i64> {
@@ -169,6 +175,7 @@ impl LinkStats {
             quinn_congestion_events: load(&self.quinn[1]),
             quinn_lost_packets: load(&self.quinn[2]),
             quinn_cwnd_bytes: Some(load(&self.quinn_cwnd_bytes)).filter(|&c| c != u64::MAX),
+            max_gap_ns: self.max_gap_ns.load(Relaxed),
         }
     }
 
@@ -324,9 +331,14 @@ impl DatagramLink {
     /// sequence counts and RTT. Use the datagram only as the answer allows (see
     /// [`protocol::session::LatestSeq`] for per-kind use).
     pub fn on_header(&mut self, header: &Header, now_ns: i64) -> Arrival {
+        let previous = self.session.last_accepted_ns();
         let arrival = self.session.on_receive(header, now_ns);
         if arrival == Arrival::Implausible {
             self.stats.count_garbage();
+        }
+        if let (true, Some(previous)) = (arrival.is_accepted(), previous) {
+            let gap = now_ns.saturating_sub(previous);
+            self.stats.max_gap_ns.fetch_max(gap, Relaxed);
         }
         let s = *self.session.stats();
         let values = [s.received, s.accepted, s.late, s.duplicates, s.lost()];
@@ -416,6 +428,7 @@ mod tests {
         assert!(link.on_header(&header(2), 40).is_accepted());
         let s = stats.snapshot();
         assert_eq!((s.garbage, s.received, s.accepted), (2, 4, 2));
+        assert_eq!(s.max_gap_ns, 30, "between the two accepted ones");
     }
 
     #[test]

@@ -397,6 +397,10 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         );
     }
     row(
+        "  longest gap between accepted datagrams",
+        format!("{:.1} ms", l.max_gap_ms),
+    );
+    row(
         "RTT smoothed / min",
         format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
     );
