@@ -506,7 +506,10 @@ fn loss_and_jitter_do_not_stall_the_datagram_streams() {
     shim.shutdown().unwrap();
     let r = &outcome.report;
     for (side, l) in [("operator", &r.link), ("telerobot", &summary.link)] {
-        eprintln!("{side}: longest gap {:.1} ms, {} lost", l.max_gap_ms, l.lost);
+        eprintln!(
+            "{side}: longest gap {:.1} ms, {} lost",
+            l.max_gap_ms, l.lost
+        );
         assert!(l.lost > 100, "{side}: the loss was applied: {l:?}");
         assert!(
             l.max_gap_ms > 0.0 && l.max_gap_ms < 50.0,

@@ -806,3 +806,76 @@ fn invalid_passivity_settings_are_refused_with_the_field() {
         assert!(e.contains(field), "{e}");
     }
 }
+
+/// Collects the `rule` field and level of every event.
+#[derive(Clone, Default)]
+struct Captured(std::sync::Arc<std::sync::Mutex<Vec<(tracing::Level, String)>>>);
+
+impl<S: tracing::Subscriber> tracing_subscriber::Layer<S> for Captured {
+    fn on_event(&self, event: &tracing::Event<'_>, _: tracing_subscriber::layer::Context<'_, S>) {
+        struct Rule(Option<String>);
+        impl tracing::field::Visit for Rule {
+            fn record_str(&mut self, field: &tracing::field::Field, value: &str) {
+                if field.name() == "rule" {
+                    self.0 = Some(value.to_owned());
+                }
+            }
+            fn record_debug(&mut self, _: &tracing::field::Field, _: &dyn std::fmt::Debug) {}
+        }
+        let mut rule = Rule(None);
+        event.record(&mut rule);
+        if let Some(rule) = rule.0 {
+            self.0
+                .lock()
+                .unwrap()
+                .push((*event.metadata().level(), rule));
+        }
+    }
+}
+
+/// Every trip is a log event — one warning when a rule starts acting and one note when it stops,
+/// never one per tick — and a counter in the stats.
+#[test]
+fn every_trip_is_logged_once_per_episode_and_counted() {
+    use tracing_subscriber::layer::SubscriberExt;
+    let captured = Captured::default();
+    let subscriber = tracing_subscriber::registry().with(captured.clone());
+    let stats = tracing::subscriber::with_default(subscriber, || {
+        let mut s = layer(SafetyConfig::default());
+        let mut k = 0;
+        let mut run = |s: &mut SafetyLayer, ticks: u32, f: Vec3| {
+            for _ in 0..ticks {
+                s.filter_force(&tick(k, f));
+                k += 1;
+            }
+        };
+        run(&mut s, 50, [f64::NAN, 0.0, 0.0]); // non-finite force, 50 ticks
+        run(&mut s, 3000, [100.0, 0.0, 0.0]); // a step far above the rate limit, then saturation
+        run(&mut s, 3000, [0.0; 3]);
+        s.stats()
+    });
+    let events = captured.0.lock().unwrap().clone();
+    let count = |level: tracing::Level, rule: &str| {
+        events
+            .iter()
+            .filter(|(l, r)| *l == level && r == rule)
+            .count() as u64
+    };
+    for (rule, episodes) in [
+        ("non-finite force", stats.non_finite_force.episodes),
+        ("rate limit", stats.rate_limited.episodes),
+        ("saturation", stats.saturated.episodes),
+    ] {
+        assert!(episodes >= 1, "{rule}: {stats:?}");
+        assert_eq!(
+            count(tracing::Level::WARN, rule),
+            episodes,
+            "{rule}: {events:?}"
+        );
+        assert_eq!(
+            count(tracing::Level::INFO, rule),
+            episodes,
+            "{rule}: {events:?}"
+        );
+    }
+}
