@@ -18,6 +18,9 @@ use std::hash::{BuildHasherDefault, Hasher};
 /// Edge of the finest grid's cells [m]. The proxy's queries are 12–20 mm at the default radii.
 const FINEST_CELL_M: f64 = 0.016;
 
+/// Clouds up to this many points are bounded by their size (512 kB of neighbour buffer).
+const COUNT_ABOVE: usize = 16_384;
+
 /// Grids of edge `FINEST_CELL_M · 2^k` for `k < LEVELS` (16 to 64 mm).
 const LEVELS: usize = 3;
 
@@ -41,8 +44,13 @@ impl DensityBound {
     }
 
     /// Counts `points` [m] on the grids: one hash-map pass over the points, then one over the
-    /// occupied cells per coarser level.
+    /// occupied cells per coarser level. A cloud of at most [`COUNT_ABOVE`] points is not
+    /// counted: every point is then a small enough bound, and the count would cost more than the
+    /// buffer it saves (a camera window of a few thousand points, re-indexed at 30 Hz).
     pub(super) fn new(points: &[[f32; 3]]) -> Self {
+        if points.len() <= COUNT_ABOVE {
+            return Self::everything(points.len());
+        }
         let mut max_count = [0; LEVELS];
         let mut cells = CellMap::default();
         for p in points {
@@ -133,10 +141,10 @@ mod tests {
         let grid: Vec<[f32; 3]> = (0..200)
             .flat_map(|i| (0..200).map(move |j| [i as f32 * 5e-4, j as f32 * 5e-4, 0.0]))
             .collect();
-        let cluster: Vec<[f32; 3]> = (0..5_000)
+        let cluster: Vec<[f32; 3]> = (0..20_000)
             .map(|_| [0; 3].map(|_| rng.random_range(-1e-3f32..1e-3)))
             .collect();
-        let cube: Vec<[f32; 3]> = (0..6_000)
+        let cube: Vec<[f32; 3]> = (0..24_000)
             .map(|k| {
                 let mut p = [0; 3].map(|_| rng.random_range(-0.01f32..0.01));
                 p[k % 3] = if k % 2 == 0 { 0.01 } else { -0.01 };
@@ -160,5 +168,16 @@ mod tests {
         assert!((4_300..80_000).contains(&b), "{b}");
         assert_eq!(DensityBound::new(&grid).max_within(f64::NAN), 0);
         assert_eq!(DensityBound::everything(7).max_within(1.0), 7);
+        // Small clouds are bounded by their size, uncounted.
+        assert_eq!(
+            DensityBound::new(&grid[..COUNT_ABOVE]).max_within(0.001),
+            COUNT_ABOVE
+        );
+        // (The three sets above are counted, not bounded by their size.)
+        assert!(
+            [&grid, &cluster, &cube]
+                .iter()
+                .all(|p| p.len() > COUNT_ABOVE)
+        );
     }
 }
