@@ -482,3 +482,4 @@ fn config_validation_names_the_field() {
 }
 
 mod passivity;
+mod transfer_scope;
