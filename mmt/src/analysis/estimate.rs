@@ -12,7 +12,7 @@
 //!   gate included, and keep passing to the end of the run.
 
 use crate::estimator::{AxisSample, Estimator, EstimatorConfig, EstimatorError};
-use crate::model::backsolve::Params;
+use crate::model::backsolve::{Confidence, Params};
 use crate::model::{Physical, Structure, col};
 use crate::sim::{SensorNoise, SimConfig, SimError, SlidingObjectSim};
 use crate::trajectory::Multisine;
@@ -62,6 +62,15 @@ pub struct EstimateReport {
     pub truth: Physical,
     /// The last confirmed set.
     pub estimated: Option<Physical>,
+    /// The back-solve's confidence in `estimated`: `{"kind":"identified"}`, or
+    /// `{"kind":"low","condition":…}` when its parameters are nearly unobservable.
+    pub confidence: Option<Confidence>,
+    /// Condition number of `∂ log θ/∂ log φ` at `estimated`.
+    pub condition: Option<f64>,
+    /// Confirmed sets over the run.
+    pub confirmed_updates: u64,
+    /// Confirmed sets whose back-solve reported low confidence.
+    pub low_confidence_updates: u64,
     /// `(estimated − true)/true` of m, b1, k2, b2, Fc [%].
     pub error_pct: Option<ParameterErrors>,
     /// Static friction of the simulated object [N] (not in the model).
@@ -192,6 +201,10 @@ pub fn estimate(config: &EstimateConfig) -> Result<EstimateReport, EstimateError
         time_to_stable_s: stable_since.map(|t| t - onset_s),
         truth,
         estimated,
+        confidence: estimator.latest().map(|g| g.confidence()),
+        condition: estimator.latest().map(|g| g.condition()),
+        confirmed_updates: estimator.stats().confirmed,
+        low_confidence_updates: estimator.stats().low_confidence_confirmed,
         error_pct: estimated.map(|e| ParameterErrors {
             mass: rel(e.mass_kg, truth.mass_kg),
             b_ground: rel(e.b_ground_ns_per_m, truth.b_ground_ns_per_m),

@@ -3,6 +3,7 @@
 use anyhow::Result;
 use clap::Args;
 use mmt::analysis::estimate::{EstimateConfig, estimate};
+use mmt::model::backsolve::Confidence;
 
 /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
 #[derive(Args, Debug)]
@@ -47,6 +48,19 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     println!(
         "time to stable parameters:         {}   (thesis exp 2: 16.1 s)",
         opt(report.time_to_stable_s, "s")
+    );
+    let confidence = match report.confidence {
+        None => "-".to_string(),
+        Some(Confidence::Identified) => "identified".to_string(),
+        Some(Confidence::Low { .. }) => "LOW (parameter errors amplified)".to_string(),
+    };
+    println!(
+        "back-solve confidence:             {confidence}, condition {}; {} of {} confirmed sets low-confidence",
+        report
+            .condition
+            .map_or("-".to_string(), |c| format!("{c:.1}")),
+        report.low_confidence_updates,
+        report.confirmed_updates
     );
     let t = report.truth;
     println!(

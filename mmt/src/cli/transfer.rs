@@ -57,5 +57,19 @@ pub fn run(args: TransferArgs) -> Result<()> {
             r.omega, r.expected, r.rendered, r.rel_error
         );
     }
+    let s = report.accuracy_scope;
+    println!(
+        "accuracy scope: ρ = h·max|λ| = {:.3}, ζ = {:.3}: {}",
+        s.rho,
+        s.damping_ratio,
+        if s.within {
+            "inside (≤ 1e-3 up to a tenth of the rate)"
+        } else {
+            "outside"
+        }
+    );
+    if let Some(note) = &report.note {
+        println!("note: {note}");
+    }
     Ok(())
 }

@@ -31,6 +31,7 @@ pub use confidence::ConfidenceConfig;
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
 use crate::model::Structure;
+use crate::model::backsolve::Confidence as BackSolveConfidence;
 use crate::model::gates::{GateConfig, GateRejection, Gated, gate};
 use crate::rls::{ColumnScales, Mode, Outcome, Rls, RlsConfig, RlsCounts, RlsError};
 use serde::{Deserialize, Serialize};
@@ -149,6 +150,10 @@ pub struct EstimatorStats {
     pub gate_rejections: u64,
     /// Sets confirmed and published.
     pub confirmed: u64,
+    /// Confirmed sets whose back-solve reported low confidence (`Confidence::Low`: e.g. k1 ≫ k2,
+    /// where noise on θ is amplified many times in φ). They are published like the others; the
+    /// count and [`Gated::confidence`] let reports say so.
+    pub low_confidence_confirmed: u64,
     /// New-object resets.
     pub new_objects: u64,
     /// Onset resets (policy `EveryOnset`).
@@ -361,6 +366,9 @@ impl Estimator {
                 if self.confidence.push(now_s, &g, error) {
                     self.latest = Some(g);
                     self.stats.confirmed += 1;
+                    if matches!(g.confidence(), BackSolveConfidence::Low { .. }) {
+                        self.stats.low_confidence_confirmed += 1;
+                    }
                     update.confirmed = Some(g);
                 }
             }

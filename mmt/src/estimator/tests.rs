@@ -34,6 +34,13 @@ fn exp1_object_with_franka_like_noise_meets_the_figures() {
         let e = r.error_pct.unwrap();
         assert!(recon <= 2.0, "seed {seed}: reconstruction {recon} %");
         assert!(tts <= 2.0, "seed {seed}: time to stable {tts} s");
+        assert_eq!(
+            r.confidence,
+            Some(crate::model::backsolve::Confidence::Identified)
+        );
+        assert!(r.condition.unwrap() < 15.0);
+        assert!(r.confirmed_updates > 0);
+        assert_eq!(r.low_confidence_updates, 0);
         for (name, v) in [
             ("m", e.mass),
             ("k2", e.k_contact),
@@ -256,4 +263,27 @@ fn invalid_configuration_names_the_field() {
             ..
         })
     ));
+}
+
+/// A confirmed set whose back-solve reports low confidence is counted and keeps its flag. With
+/// the condition threshold at 1 every exp-1 back-solve is `Low` (exp-1 measures about 5).
+#[test]
+fn low_confidence_confirmed_sets_are_counted() {
+    let mut strict = exp1_config();
+    strict.gates.back_solve.max_condition = 1.0;
+    let mut est = Estimator::new(strict).unwrap();
+    run(&mut est, Physical::THESIS_EXP1, 6.0, |t| t >= 0.5, 2);
+    let s = est.stats();
+    assert!(s.confirmed > 0, "{s:?}");
+    assert_eq!(s.low_confidence_confirmed, s.confirmed);
+    let latest = est.latest().unwrap();
+    assert!(
+        matches!(latest.confidence(), crate::model::backsolve::Confidence::Low { condition } if condition == latest.condition() && condition > 1.0),
+        "{:?}",
+        latest.confidence()
+    );
+    let mut default = Estimator::new(exp1_config()).unwrap();
+    run(&mut default, Physical::THESIS_EXP1, 6.0, |t| t >= 0.5, 2);
+    assert!(default.stats().confirmed > 0);
+    assert_eq!(default.stats().low_confidence_confirmed, 0);
 }

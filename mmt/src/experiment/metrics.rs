@@ -1,6 +1,6 @@
 //! What an experiment records and what the report computes from it.
 
-use crate::model::backsolve::Params;
+use crate::model::backsolve::{Confidence, Params};
 use crate::model::gates::Gated;
 use crate::node::operator::{OperatorOutput, OperatorStats};
 use crate::node::telerobot::TelerobotStats;
@@ -186,6 +186,18 @@ pub struct ParameterReport {
     pub axes: &'static str,
     /// `(name, true, estimated, error %)`.
     pub values: Vec<(String, f64, f64, f64)>,
+    /// The back-solve's confidence in the final set: `{"kind":"low","condition":…}` when the
+    /// parameters are nearly unobservable (e.g. k1 ≫ k2) and their errors amplified.
+    pub confidence: Confidence,
+    /// Condition number of `∂ log θ/∂ log φ` at the final set.
+    pub condition: f64,
+    /// Confirmed sets of this group whose back-solve reported low confidence, and all confirmed
+    /// sets, when the estimator's counters are at hand (the in-process experiment).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub low_confidence_updates: Option<u64>,
+    /// All confirmed sets of this group (with `low_confidence_updates`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub confirmed_updates: Option<u64>,
 }
 
 /// The thesis's figures, for the same table.
@@ -515,7 +527,14 @@ pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<Paramet
             ],
             Params::Free => vec![],
         };
-        out.push(ParameterReport { axes, values });
+        out.push(ParameterReport {
+            axes,
+            values,
+            confidence: latest.confidence(),
+            condition: latest.condition(),
+            low_confidence_updates: None,
+            confirmed_updates: None,
+        });
     }
     out
 }

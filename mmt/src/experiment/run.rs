@@ -175,8 +175,19 @@ pub fn run(
         latest(telerobot.normal_estimator()),
         latest(telerobot.tangential_estimator()),
     );
+    let mut parameters = parameter_report(&config.scene, [normal.as_ref(), tangential.as_ref()]);
+    for p in &mut parameters {
+        let estimator = match p.axes {
+            "normal" => telerobot.normal_estimator(),
+            _ => telerobot.tangential_estimator(),
+        };
+        if let Some(s) = estimator.map(|e| e.stats()) {
+            p.low_confidence_updates = Some(s.low_confidence_confirmed);
+            p.confirmed_updates = Some(s.confirmed);
+        }
+    }
     let nodes = NodeInfo {
-        parameters: parameter_report(&config.scene, [normal.as_ref(), tangential.as_ref()]),
+        parameters,
         operator: operator.stats(),
         shadow: shadow.stats(),
         telerobot: telerobot.stats(),

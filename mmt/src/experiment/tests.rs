@@ -1,6 +1,7 @@
 //! The experiments at short durations with their figures asserted (accuracy, never timing).
 
 use super::*;
+use crate::model::backsolve::Confidence;
 use crate::vec3;
 
 fn run_with(
@@ -77,6 +78,56 @@ fn exp2_meets_its_figures() {
     assert!(recon <= 2.0, "reconstruction {recon:.2} %");
     let tts = r.time_to_stable_s.unwrap();
     assert!(tts <= 2.0, "time to stable {tts:.2} s");
+    // The final sets are well conditioned, and none of the confirmed ones was low-confidence.
+    assert!(!r.parameters.is_empty());
+    for p in &r.parameters {
+        assert_eq!(p.confidence, Confidence::Identified, "{}", p.axes);
+        assert!(p.confirmed_updates.unwrap() > 0, "{}", p.axes);
+        assert_eq!(p.low_confidence_updates, Some(0), "{}", p.axes);
+    }
+}
+
+/// A low-confidence set (k1 ≫ k2: condition ≈ 26) is reported as such in the JSON and the table,
+/// next to the unchanged keys.
+#[test]
+fn low_confidence_parameters_are_reported() {
+    use crate::model::gates::{GateConfig, gate};
+    use crate::model::{Physical, Structure};
+    let heavy_ground = Physical::new(0.5, 5000.0, 5.0, 300.0, 10.0, 0.3);
+    let structure = Structure::SlidingMass {
+        ground_spring: true,
+        friction: true,
+    };
+    let g = gate(
+        structure,
+        &heavy_ground.theta().unwrap(),
+        None,
+        &GateConfig::default(),
+    )
+    .unwrap();
+    let report = parameter_report(&Scene::exp1(), [None, Some(&g)]);
+    assert_eq!(report.len(), 1);
+    let Confidence::Low { condition } = report[0].confidence else {
+        panic!("{:?}", report[0].confidence)
+    };
+    assert!(condition > 15.0 && condition == report[0].condition);
+    let json = serde_json::to_value(&report[0]).unwrap();
+    assert_eq!(json["axes"], "tangential");
+    assert!(json["values"].is_array());
+    assert_eq!(json["confidence"]["kind"], "low");
+    assert!(json.get("low_confidence_updates").is_none());
+    // The in-process run fills in the counts and the table says it.
+    let (_, mut r) = run_with(Kind::Exp1, 3.0, |_| {});
+    let mut low = report[0].clone();
+    low.low_confidence_updates = Some(4);
+    low.confirmed_updates = Some(9);
+    r.parameters = vec![low];
+    let table = crate::report::experiment::table(&r);
+    assert!(
+        table.contains("back-solve confidence, tangential: LOW")
+            && table.contains("4 of 9 confirmed sets low-confidence"),
+        "{table}"
+    );
 }
 
 /// The wall identifies and renders two parameters per axis, streams no moving cloud, and its

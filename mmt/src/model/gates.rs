@@ -64,6 +64,10 @@ impl Gated {
     pub fn confidence(&self) -> Confidence {
         self.solved.confidence
     }
+    /// Condition number of `∂ log θ/∂ log φ` at the back-solved set (1 for a given set).
+    pub fn condition(&self) -> f64 {
+        self.solved.condition
+    }
     /// The sliding-mass parameters, if this is a sliding mass.
     pub fn sliding_mass(&self) -> Option<Physical> {
         match self.solved.params {

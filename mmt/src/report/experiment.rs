@@ -5,6 +5,7 @@
 use super::plot::{Panel, PlotError, Series as Line, png, svg};
 use super::spectrum::spectrum;
 use crate::experiment::{ExperimentReport, Series};
+use crate::model::backsolve::Confidence;
 use crate::vec3;
 use std::fmt::Write;
 
@@ -99,6 +100,19 @@ pub fn table(r: &ExperimentReport) -> String {
             })
             .collect();
         let _ = writeln!(out, "parameters, {}: {}", p.axes, values.join(", "));
+        let confidence = match p.confidence {
+            Confidence::Identified => "identified",
+            Confidence::Low { .. } => "LOW, parameter errors amplified",
+        };
+        let updates = match (p.low_confidence_updates, p.confirmed_updates) {
+            (Some(low), Some(all)) => format!(", {low} of {all} confirmed sets low-confidence"),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            out,
+            "back-solve confidence, {}: {confidence} (condition {:.1}){updates}",
+            p.axes, p.condition
+        );
     }
     if !r.left_out.is_empty() {
         let _ = writeln!(out, "left out: {}", r.left_out.join("; "));

@@ -212,3 +212,47 @@ fn polynomial_roots_against_expansion() {
     let (lo, hi) = (a.unwrap().min(b.unwrap()), a.unwrap().max(b.unwrap()));
     assert!((lo - 1e-8).abs() < 1e-20 && (hi - 1e8).abs() < 1e-4);
 }
+
+/// Numerics notes §10.2: k1 ≫ k2 must report low confidence and m → 0 must be refused, under
+/// 0.1, 1 and 5 % noise alike — never a well-conditioned-looking answer. 200 seeded trials each.
+#[test]
+fn ill_conditioned_sets_are_flagged_at_every_noise_level() {
+    let mut rng = Pcg64::seed_from_u64(11);
+    let mut tiny_mass = typical();
+    tiny_mass.mass_kg = 1e-4;
+    let mut massless = typical();
+    massless.mass_kg = 0.0;
+    let cfg = BackSolveConfig::default();
+    for noise in [0.001, 0.01, 0.05] {
+        for _ in 0..200 {
+            match solve(WITH_K1, &heavy_ground(), noise, &mut rng) {
+                Ok(BackSolved {
+                    confidence: Confidence::Low { condition },
+                    ..
+                }) => assert!(condition > cfg.max_condition, "{condition}"),
+                // Refusing is also honest; what must never happen is `Identified`.
+                Err(_) => {}
+                Ok(r) => panic!(
+                    "k1 ≫ k2 at noise {noise} reported {:?} (condition {}, error {:.3})",
+                    r.confidence,
+                    r.condition,
+                    max_rel_err(WITH_K1, &heavy_ground(), &sliding(&r))
+                ),
+            }
+            for p in [tiny_mass, massless] {
+                match solve(WITH_K1, &p, noise, &mut rng) {
+                    Err(BackSolveError::MassNotIdentifiable {
+                        visibility,
+                        required,
+                    }) => {
+                        assert!(visibility < required, "{visibility}")
+                    }
+                    other => panic!(
+                        "m = {} at noise {noise} must be refused, got {other:?}",
+                        p.mass_kg
+                    ),
+                }
+            }
+        }
+    }
+}

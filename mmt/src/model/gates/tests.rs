@@ -152,6 +152,29 @@ fn residual_gate_rejects_off_manifold_theta() {
     assert!(exact.residual() < 1e-9);
 }
 
+/// The same case at the shipped threshold (0.25). The residual grows slowly with the misfit of
+/// `b` (×3: 0.13, ×5: 0.15, measured), so the default gate needs `b` ten times off: 0.34.
+#[test]
+fn residual_gate_rejects_off_manifold_theta_at_default_threshold() {
+    let mut t = typical().theta().unwrap();
+    t.0[col::B] *= 10.0; // off the manifold, still passive
+    let default = GateConfig::default();
+    assert_eq!(default.max_residual, 0.25);
+    match gate(FULL, &t, None, &default) {
+        Err(GateRejection::Residual { residual, max }) => {
+            assert_eq!(max, 0.25);
+            assert!((0.3..0.4).contains(&residual), "{residual}");
+        }
+        other => panic!("expected a residual rejection, got {other:?}"),
+    }
+    // The set is passive, so it is the residual gate alone that refuses it.
+    let loose = GateConfig {
+        max_residual: f64::INFINITY,
+        ..default
+    };
+    assert!(gate(FULL, &t, None, &loose).is_ok());
+}
+
 proptest! {
     /// The closed-form positive-real test agrees with a dense numeric evaluation on random θ.
     #[test]
