@@ -6,7 +6,7 @@
 //!   Works with no device and no SDK (says so, exits 0).
 //! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
 //! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
-//!   [--position-scale F] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
+//!   [--position-scale F] [--device-origin X,Y,Z] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
 //!   the network flags it only opens the device and says what it is (exits 2).
 //! - `operator demo [--delay-ms 400] [--seconds 20] [--out DIR] [--json]` — the whole system in
 //!   one process ([`crate::demo`]).
@@ -111,6 +111,11 @@ pub struct RunArgs {
     /// than the hand, for fine work; the device's clutch button repositions the hand.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     pub position_scale: f64,
+    /// Where the device's origin (the centre of its workspace) sits in the telerobot's world,
+    /// `X,Y,Z` [m]: commanded = origin + scale · device position. Default 0,0,0 (the scripted
+    /// and replay devices already move in world coordinates).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_origin, allow_hyphen_values = true)]
+    pub device_origin: Option<[f64; 3]>,
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
@@ -141,9 +146,29 @@ impl RunArgs {
         }
         Ok(SafetyConfig {
             position_scale: scale,
+            device_origin_m: self.device_origin.unwrap_or_default(),
             ..SafetyConfig::default()
         })
     }
+}
+
+/// `--device-origin X,Y,Z`: three finite coordinates within ±10 m.
+fn parse_origin(s: &str) -> Result<[f64; 3], String> {
+    let expected =
+        || format!("`{s}`: expected X,Y,Z, three finite coordinates in metres within ±10 m");
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [x, y, z] = parts.as_slice() else {
+        return Err(expected());
+    };
+    let mut out = [0.0; 3];
+    for (slot, part) in out.iter_mut().zip([x, y, z]) {
+        *slot = part
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && v.abs() <= 10.0)
+            .ok_or_else(expected)?;
+    }
+    Ok(out)
 }
 
 /// `operator devices`: prints what this machine offers. Always succeeds unless output fails.

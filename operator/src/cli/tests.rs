@@ -152,6 +152,48 @@ fn run_args(extra: &[&str]) -> RunArgs {
 }
 
 #[test]
+fn device_origin_is_parsed_checked_and_applied() {
+    assert_eq!(run_args(&[]).safety().unwrap().device_origin_m, [0.0; 3]);
+    let args = run_args(&["--device-origin", "0.1,-0.05,0.2"]);
+    let safety = args.safety().unwrap();
+    assert_eq!(safety.device_origin_m, [0.1, -0.05, 0.2]);
+    // The commanded position is the origin plus the scaled device position.
+    let mut layer = crate::safety::SafetyLayer::new(
+        &crate::device::DeviceCapabilities::omega7("test"),
+        &safety,
+    )
+    .unwrap();
+    let commanded = layer.command_position([0.01, 0.0, -0.01], false);
+    for (c, e) in commanded.iter().zip([0.11, -0.05, 0.19]) {
+        assert!((c - e).abs() < 1e-15, "{commanded:?}");
+    }
+    let nan = crate::safety::SafetyConfig {
+        device_origin_m: [f64::NAN, 0.0, 0.0],
+        ..safety
+    };
+    let e =
+        crate::safety::SafetyLayer::new(&crate::device::DeviceCapabilities::omega7("test"), &nan)
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("device_origin_m") && e.contains("±10 m"), "{e}");
+    for bad in ["1,2", "a,0,0", "0,0,nan", "0,0,11", "1,2,3,4"] {
+        let argv = [
+            "operator",
+            "run",
+            "--device",
+            "scripted:hold",
+            "--device-origin",
+            bad,
+        ];
+        let e = Cli::try_parse_from(argv).unwrap_err().to_string();
+        assert!(
+            e.contains("--device-origin") && e.contains(&format!("`{bad}`: expected X,Y,Z")),
+            "{e}"
+        );
+    }
+}
+
+#[test]
 fn position_scale_is_checked_and_applied() {
     assert_eq!(run_args(&[]).safety().unwrap().position_scale, 1.0);
     let args = run_args(&["--position-scale", "0.25"]);

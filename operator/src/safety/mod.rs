@@ -70,6 +70,10 @@ pub struct SafetyConfig {
     pub watchdog: WatchdogConfig,
     /// Initial position scale (commanded m per device m), finite and > 0. Default 1.
     pub position_scale: f64,
+    /// Where the device's origin is in the telerobot's world [m]: commanded = origin + scale ·
+    /// measured (translation only; the clutch shifts it further). Finite, each coordinate within
+    /// ±10 m. Default the world origin (the scripted devices already move in world coordinates).
+    pub device_origin_m: Vec3,
     /// Passivity observer and controller at the device port.
     pub passivity: PassivityConfig,
 }
@@ -82,6 +86,7 @@ impl Default for SafetyConfig {
             workspace_stiffness_n_per_m: 500.0,
             watchdog: WatchdogConfig::default(),
             position_scale: 1.0,
+            device_origin_m: vec3::ZERO,
             passivity: PassivityConfig::default(),
         }
     }
@@ -205,13 +210,25 @@ impl SafetyLayer {
             p.energy_cap_j,
             "a finite energy > 0 J",
         )?;
+        if !config
+            .device_origin_m
+            .iter()
+            .all(|c| c.is_finite() && c.abs() <= 10.0)
+        {
+            return Err(SafetyError::InvalidConfig {
+                field: "device_origin_m",
+                value: format!("{:?}", config.device_origin_m),
+                expected: "three finite coordinates within ±10 m",
+            });
+        }
         Ok(Self {
             max_force_n,
             max_rate_n_per_s,
             workspace: device.workspace,
             workspace_k: k.min(device.max_stiffness_n_per_m.max(0.0)),
             watchdog: SoftWatchdog::new(*w),
-            position: PositionMap::new(PositionScale::new(config.position_scale)?),
+            position: PositionMap::new(PositionScale::new(config.position_scale)?)
+                .with_origin(config.device_origin_m),
             passivity: passivity::Passivity::new(p, max_damping),
             last_force: vec3::ZERO,
             stats: SafetyStats::default(),

@@ -65,6 +65,13 @@ impl PositionMap {
         }
     }
 
+    /// The map placing the device's origin at `origin_m` [m] in the world (before any clutching).
+    #[must_use]
+    pub fn with_origin(mut self, origin_m: Vec3) -> Self {
+        self.offset = origin_m;
+        self
+    }
+
     /// One tick: the commanded position for a (finite) measured position and clutch state.
     pub fn update(&mut self, measured: Vec3, clutch: bool) -> Vec3 {
         if self.last_measured.is_none() {
