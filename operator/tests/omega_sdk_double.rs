@@ -131,6 +131,15 @@ fn open_error(library: Option<&str>, env: Option<&str>) -> Option<String> {
         .map(|e| e.to_string())
 }
 
+/// The omega backend on the double, opened from the loader's path, under the default manager.
+fn managed() -> ManagedDevice<OmegaBackend> {
+    ManagedDevice::new(
+        OmegaBackend::open_with_env(&config(), None).unwrap(),
+        ManagedConfig::default(),
+    )
+    .unwrap()
+}
+
 fn ms(n: u64) -> Duration {
     Duration::from_millis(n)
 }
@@ -193,11 +202,7 @@ fn enable_disable_order_and_force_writes() {
 fn reads_position_and_velocity() {
     let d = Double::new(1);
     d.set_position([0.01, -0.02, 0.03], [0.1, 0.0, -0.1]);
-    let mut dev = ManagedDevice::new(
-        OmegaBackend::open_with_env(&config(), None).unwrap(),
-        ManagedConfig::default(),
-    )
-    .unwrap();
+    let mut dev = managed();
     dev.update(ms(0)).unwrap();
     assert_eq!(dev.measured_cp(), [0.01, -0.02, 0.03]);
     assert_eq!(dev.measured_cv(), [0.1, 0.0, -0.1]);
@@ -217,11 +222,7 @@ fn reads_position_and_velocity() {
 #[test]
 fn the_handle_button_is_the_clutch() {
     let d = Double::new(1);
-    let mut dev = ManagedDevice::new(
-        OmegaBackend::open_with_env(&config(), None).unwrap(),
-        ManagedConfig::default(),
-    )
-    .unwrap();
+    let mut dev = managed();
     d.set_button(1, true);
     dev.update(ms(0)).unwrap();
     assert!(!dev.clutch(), "another button is not the clutch");
@@ -236,11 +237,7 @@ fn the_handle_button_is_the_clutch() {
 #[test]
 fn sdk_error_faults_the_device_with_the_sdk_message() {
     let d = Double::new(1);
-    let mut dev = ManagedDevice::new(
-        OmegaBackend::open_with_env(&config(), None).unwrap(),
-        ManagedConfig::default(),
-    )
-    .unwrap();
+    let mut dev = managed();
     dev.enable(ms(0)).unwrap();
     d.fail("dhdGetPosition");
     let e = dev.update(ms(1)).unwrap_err().to_string();
@@ -393,11 +390,7 @@ fn report_of(device: Box<dyn HapticDevice>) -> operator::report::NetworkedReport
 fn forces_cut_by_the_sdk_watchdog_or_velocity_guard_fault_the_device_and_are_reported() {
     for (cause, words) in [(3, "watchdog"), (2, "velocity guard")] {
         let d = Double::new(1);
-        let mut dev = ManagedDevice::new(
-            OmegaBackend::open_with_env(&config(), None).unwrap(),
-            ManagedConfig::default(),
-        )
-        .unwrap();
+        let mut dev = managed();
         dev.enable(ms(0)).unwrap();
         dev.update(ms(1)).unwrap();
         dev.servo_cf(ms(1), [1.0, 0.0, 0.0]).unwrap();
@@ -435,11 +428,7 @@ fn forces_cut_by_the_sdk_watchdog_or_velocity_guard_fault_the_device_and_are_rep
 #[test]
 fn forces_off_while_disabled_is_no_fault() {
     let d = Double::new(1);
-    let mut dev = ManagedDevice::new(
-        OmegaBackend::open_with_env(&config(), None).unwrap(),
-        ManagedConfig::default(),
-    )
-    .unwrap();
+    let mut dev = managed();
     d.force_off(3);
     dev.update(ms(1)).unwrap();
     assert_eq!(dev.operating_state(), OperatingState::Disabled);
