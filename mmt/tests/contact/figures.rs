@@ -3,7 +3,7 @@
 
 use mmt::cloud::Pose;
 use mmt::cloud::synthetic::{SceneObject, Shape};
-use mmt::contact::{ContactState, ProxyConfig};
+use mmt::contact::{ContactState, NormalEstimator, ProxyConfig};
 
 use crate::support::*;
 
@@ -30,18 +30,42 @@ fn through_path(origin: [f64; 3], n: [f64; 3], speed: f64) -> Vec<[f64; 3]> {
     ])
 }
 
+/// Both normal estimators: the default weighted plane fit and the thesis's literal eq. 14.
+fn configs() -> [ProxyConfig; 2] {
+    [
+        NormalEstimator::WeightedPlaneFit,
+        NormalEstimator::WeightedDirections,
+    ]
+    .map(|normal_estimator| ProxyConfig {
+        normal_estimator,
+        ..config()
+    })
+}
+
 #[test]
 fn no_punch_through_a_plane_at_up_to_1_m_per_s_with_noise_up_to_half_the_band() {
-    let c = config();
+    for c in configs() {
+        plane_punch_through(c);
+    }
+}
+
+/// Four orientations, three noise levels, three seeds of the noisy clouds, two speeds.
+fn plane_punch_through(c: ProxyConfig) {
     let max_noise = (c.r2_m - c.r1_m) / 2.0;
     for (k, normal) in NORMALS.iter().enumerate() {
         let n = unit(*normal);
         let origin = [0.01 * k as f64, -0.02, 0.3];
         let object = plane(n, origin, 0.12);
-        for noise in [0.0, max_noise / 2.0, max_noise] {
+        for (noise, seed) in [0.0, max_noise / 2.0, max_noise]
+            .into_iter()
+            .flat_map(|noise| (0..3).map(move |s| (noise, s)))
+        {
+            if noise == 0.0 && seed > 0 {
+                continue;
+            }
             let sensor = Sensor {
                 dropout: if noise > 0.0 { 0.05 } else { 0.0 },
-                seed: k as u64,
+                seed: 10 * k as u64 + seed,
                 ..Sensor::noisy(noise)
             };
             let index = index(&object, &sensor);
@@ -53,12 +77,22 @@ fn no_punch_through_a_plane_at_up_to_1_m_per_s_with_noise_up_to_half_the_band() 
                     .fold(f64::INFINITY, f64::min);
                 assert!(
                     lowest > 0.0,
-                    "normal {n:?}, noise {noise}, {speed} m/s: proxy {lowest} m below the plane"
+                    "{:?}, normal {n:?}, noise {noise}, seed {seed}, {speed} m/s: proxy {lowest} m \
+                     below the plane",
+                    c.normal_estimator
                 );
-                // While the HIP is deep, the proxy rests on the surface, not above it.
+                // While the HIP is deep, the proxy rests on the surface, not above it — with the
+                // default plane fit. The literal eq. 14 tilts on noisy clouds and, at the largest
+                // noise and 1 m/s, can leave the proxy lifted off (5 mm above, `Free`) while the
+                // HIP is 35 mm deep: measured, and the reason it is not the default.
                 let deepest_tick = out.len() / 2;
                 let o = &out[deepest_tick];
-                assert!(o.state.is_touching(), "{o:?}");
+                assert!(
+                    c.normal_estimator == NormalEstimator::WeightedDirections
+                        || o.state.is_touching(),
+                    "{:?}, normal {n:?}, noise {noise}, seed {seed}, {speed} m/s: {o:?}",
+                    c.normal_estimator
+                );
                 out.iter().for_each(assert_finite);
             }
         }
@@ -125,7 +159,13 @@ fn test_box() -> SceneObject {
 
 #[test]
 fn no_punch_through_a_box_through_faces_edges_and_corners() {
-    let c = config();
+    for c in configs() {
+        box_punch_through(c);
+    }
+}
+
+/// Faces, edges and corners, exact and at the largest noise (three seeds), two speeds.
+fn box_punch_through(c: ProxyConfig) {
     let object = test_box();
     let centre = object.pose.translation_m;
     let world = |local: [f64; 3]| object.pose.transform_point(local);
@@ -137,8 +177,15 @@ fn no_punch_through_a_box_through_faces_edges_and_corners() {
         ([0.05, 0.0, 0.05], [-0.03, 0.005, -0.03]),
         ([0.05, 0.045, 0.045], [-0.03, -0.02, -0.02]),
     ];
-    for noise in [0.0, (c.r2_m - c.r1_m) / 2.0] {
-        let index = index(&object, &Sensor::noisy(noise));
+    let max_noise = (c.r2_m - c.r1_m) / 2.0;
+    for (noise, seed) in [(0.0, 0), (max_noise, 1), (max_noise, 2), (max_noise, 3)] {
+        let index = index(
+            &object,
+            &Sensor {
+                seed,
+                ..Sensor::noisy(noise)
+            },
+        );
         for (from, to) in targets {
             for speed in [0.3, 1.0] {
                 let (from, to) = (world(from), world(to));
@@ -148,8 +195,9 @@ fn no_punch_through_a_box_through_faces_edges_and_corners() {
                     let d = object.signed_distance(0.0, o.proxy_m);
                     assert!(
                         d > 0.0,
-                        "noise {noise}, {from:?} → {to:?} at {speed} m/s, tick {k}: proxy {d} m \
-                         inside the box (centre {centre:?})"
+                        "{:?}, noise {noise}, seed {seed}, {from:?} → {to:?} at {speed} m/s, tick \
+                         {k}: proxy {d} m inside the box (centre {centre:?})",
+                        c.normal_estimator
                     );
                     assert_finite(o);
                 }
