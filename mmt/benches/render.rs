@@ -62,15 +62,7 @@ fn noisy_thetas(p: &Physical, n: usize) -> Vec<Theta> {
 
 fn back_solves(c: &mut Criterion) {
     let exp1 = noisy_thetas(&Physical::THESIS_EXP1, 256);
-    let typical = Physical {
-        mass_kg: 0.5,
-        k_ground_n_per_m: 200.0,
-        b_ground_ns_per_m: 5.0,
-        k_contact_n_per_m: 2000.0,
-        b_contact_ns_per_m: 10.0,
-        coulomb_n: 0.3,
-    };
-    let full = noisy_thetas(&typical, 256);
+    let full = noisy_thetas(&Physical::TYPICAL, 256);
     let cfg = BackSolveConfig::default();
     let gates = GateConfig::default();
     let mut k = 0usize;

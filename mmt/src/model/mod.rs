@@ -59,6 +59,17 @@ impl Physical {
         coulomb_n: 0.05,
     };
 
+    /// The numerics notes' "typical" object (§2.4, §6.2): 0.5 kg, k1 = 200, b1 = 5, k2 = 2000,
+    /// b2 = 10, dynamic friction 0.3 N.
+    pub const TYPICAL: Physical = Physical {
+        mass_kg: 0.5,
+        k_ground_n_per_m: 200.0,
+        b_ground_ns_per_m: 5.0,
+        k_contact_n_per_m: 2000.0,
+        b_contact_ns_per_m: 10.0,
+        coulomb_n: 0.3,
+    };
+
     /// A set from `(m, k1, b1, k2, b2, Fc)` in that order [kg, N/m, N·s/m, N/m, N·s/m, N].
     pub const fn new(
         mass_kg: f64,
@@ -385,10 +396,7 @@ mod tests {
     use super::*;
 
     fn typical() -> Physical {
-        Physical {
-            coulomb_n: 0.3,
-            ..crate::testutil::typical()
-        }
+        Physical::TYPICAL
     }
 
     /// θ is the coefficient vector of `F(Z1+Z2)/S = −(Z1 Z2 X + Z2 Fc σ)/S` — check the forward

@@ -15,7 +15,7 @@ const FULL: Structure = Structure::SlidingMass {
 };
 
 fn typical() -> Physical {
-    Physical::new(0.5, 200.0, 5.0, 2000.0, 10.0, 0.0)
+    crate::testutil::typical()
 }
 
 fn renderer_for(p: &Physical, config: RendererConfig) -> SlidingMassRenderer {

@@ -13,7 +13,7 @@ const NO_K1: Structure = Structure::SlidingMass {
 };
 
 fn typical() -> Physical {
-    Physical::new(0.5, 200.0, 5.0, 2000.0, 10.0, 0.3)
+    Physical::TYPICAL
 }
 /// Thesis appendix E set: the double root of the (C)+(D) quadratic.
 fn thesis_e() -> Physical {

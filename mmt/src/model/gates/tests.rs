@@ -8,14 +8,7 @@ const FULL: Structure = Structure::SlidingMass {
 };
 
 fn typical() -> Physical {
-    Physical {
-        mass_kg: 0.5,
-        k_ground_n_per_m: 200.0,
-        b_ground_ns_per_m: 5.0,
-        k_contact_n_per_m: 2000.0,
-        b_contact_ns_per_m: 10.0,
-        coulomb_n: 0.3,
-    }
+    Physical::TYPICAL
 }
 
 fn gate_theta(p: &Physical) -> Result<Gated, GateRejection> {
