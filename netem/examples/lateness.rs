@@ -9,7 +9,7 @@
 //! cargo run --release -p netem --example lateness -- --seconds 20 --delay 400ms --rt-priority 10
 //! ```
 //!
-//! The sender, the shim and the sink share one process and one clock ([`netem::clock`]), so the
+//! The sender, the shim and the sink share one process and one clock ([`rt::monotonic_ns`]), so the
 //! one-way delay is exact up to the clock read. These are figures for a report, not a test.
 
 use std::net::UdpSocket;
@@ -19,9 +19,10 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
-use netem::clock::{now_ns, sleep_until_ns};
+use netem::shim::now_ns;
 use netem::units::{parse_duration_ns, parse_percent};
 use netem::{Distribution, LinkConfig, Loss, ShimConfig};
+use rt::sleep_until_ns;
 
 #[derive(Parser, Debug)]
 #[command(about = "Release lateness and one-way delay of a stamped UDP stream through the shim")]
@@ -99,7 +100,7 @@ fn main() -> anyhow::Result<()> {
     let mut max_send_gap_ns = 0;
     let mut last_send = None;
     for seq in 0..count {
-        sleep_until_ns(start + seq * period_ns, 50_000);
+        sleep_until_ns((start + seq * period_ns) as i64, 50_000);
         let sent_ns = now_ns();
         payload[..8].copy_from_slice(&seq.to_le_bytes());
         payload[8..16].copy_from_slice(&sent_ns.to_le_bytes());

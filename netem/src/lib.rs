@@ -12,19 +12,17 @@
 //!   each direction between a client and a server, with per-packet CSV log, counters, live
 //!   reconfiguration and prompt shutdown. The `netem` binary is a thin command line around
 //!   [`shim::run`]; the operator's `demo` starts it in-process with [`shim::start`].
-//! - [`clock`], [`units`], [`stats`], [`queue`]: the shim's clock and precise waits, strict
-//!   parsers for `400ms`/`10mbit`/`1%`, a lock-free latency histogram, the `(due, seq)` queue.
+//! - [`units`], [`queue`]: strict parsers for `400ms`/`10mbit`/`1%`, the `(due, seq)` queue. The
+//!   clock, the precise wait and the latency histogram are [`rt`]'s.
 //!
 //! What it is not: not kernel netem (no root, no qdisc; it proxies one UDP flow), not a QUIC
 //! endpoint, not a packet corrupter (netem's `corrupt` shows up as loss for QUIC), and not a
 //! model of slots, ATM cells or netem's 4-state loss model.
 
 pub mod channel;
-pub mod clock;
 pub mod model;
 pub mod queue;
 pub mod shim;
-pub mod stats;
 pub mod units;
 
 pub use channel::Channel;

@@ -13,9 +13,10 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use netem::clock::{now_ns, sleep_until_ns};
+use netem::shim::now_ns;
 use netem::shim::{self, CSV_HEADER, ShimError};
 use netem::{Direction, Fate, Link, LinkConfig, Loss, ShimConfig, ShimHandle};
+use rt::sleep_until_ns;
 
 const MS: u64 = 1_000_000;
 
@@ -113,7 +114,7 @@ fn send_stamped(socket: &UdpSocket, count: u64, period_ns: u64) -> JoinHandle<()
     std::thread::spawn(move || {
         let start = now_ns();
         for seq in 0..count {
-            sleep_until_ns(start + seq * period_ns, 20_000);
+            sleep_until_ns((start + seq * period_ns) as i64, 20_000);
             let mut payload = [0u8; 32];
             payload[..8].copy_from_slice(&seq.to_le_bytes());
             payload[8..16].copy_from_slice(&now_ns().to_le_bytes());

@@ -56,7 +56,7 @@ fn main() {
         let r = &outcome.report;
         let t = r.telerobot.as_ref().unwrap();
         // Latencies beyond the set delay: what the stack adds (queueing, scheduling).
-        let extra = |l: &rt::LatencyReport| {
+        let extra = |l: &rt::Summary| {
             let d = delay_ms * 1e3;
             format!(
                 "{:.3}/{:.3}/{:.3}",

@@ -15,8 +15,8 @@ use std::time::{Duration, Instant};
 use mmt::experiment::Series;
 use mmt::node::operator::{OperatorConfig, OperatorNode};
 use mmt::scene::Scene;
+use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown};
-use transport::clock::monotonic_ns;
 
 use crate::device::{DeviceError, DeviceSpec, OpenOptions, open_device};
 use crate::haptic::{Exchange, HapticLoop};
@@ -131,7 +131,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     if !spec.outputs_force {
         tracing::warn!(device = %config.device, "{}", crate::cli::no_force_warning(&config.device));
     }
-    let runtime = rt::network_runtime("operator-net").map_err(io("the network runtime"))?;
+    let runtime = transport::network_runtime("operator-net").map_err(io("the network runtime"))?;
     let (link, net_io) = net::link(
         net::DEFAULT_OUTBOX_CAPACITY,
         net::DEFAULT_MEASUREMENT_CAPACITY,
@@ -219,7 +219,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     helper_stop.trigger();
     let recording = helper.join();
     let stats = link.stats();
-    let mut final_link: rt::LinkReport = stats.into();
+    let mut final_link: transport::LinkReport = stats.into();
     let overwritten = link.measurements_overwritten();
     let net_result = stop_network(net_task);
     // quinn's counts are read once more when the session's link is dropped (the session's RTT

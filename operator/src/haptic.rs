@@ -135,9 +135,7 @@ impl HapticLoop {
             self.tick(tick, &mut state);
             state.ticks = tick.index + 1;
         }
-        let end = Duration::from_nanos(
-            u64::try_from(transport::clock::monotonic_ns() - start_ns).unwrap_or(0),
-        );
+        let end = Duration::from_nanos(u64::try_from(rt::monotonic_ns() - start_ns).unwrap_or(0));
         if let Err(e) = self.device.disable(end) {
             tracing::warn!("disabling the device: {e}");
         }

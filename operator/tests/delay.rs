@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use common::*;
 use netem::{Direction, LinkConfig, Loss, ShimConfig};
-use transport::clock::monotonic_ns;
+use rt::monotonic_ns;
 
 const DELAY_NS: i64 = 400 * MS;
 

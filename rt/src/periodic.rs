@@ -1,7 +1,7 @@
 //! [`Periodic`]: the schedule of a fixed-rate loop on absolute deadlines.
 //!
 //! Tick `k` is due at `start + k·period`. The loop sleeps until `deadline − spin`, then spins (see
-//! [`sleep_until_ns`]). A tick that starts late is still tick `k` with its nominal time: the nodes
+//! [`sleep_until_ns`](crate::clock::sleep_until_ns)). A tick that starts late is still tick `k` with its nominal time: the nodes
 //! step with a fixed `dt`, so their time must advance by exactly one period per tick. After a
 //! stall the missed ticks run back to back (catch-up) up to [`PeriodicConfig::max_catch_up`];
 //! beyond that the schedule jumps to now and the ticks in between are counted as skipped (the
@@ -9,8 +9,7 @@
 
 use std::sync::Arc;
 
-use transport::clock::monotonic_ns;
-
+use crate::clock::{monotonic_ns, sleep_until_ns};
 use crate::timing::LoopTiming;
 
 /// Largest spin window allowed \[ns\]: 200 µs, 20 % of a 1 ms period (`DESIGN.md` §2: two spinning
@@ -150,18 +149,6 @@ impl Periodic {
         self.start_ns
             .saturating_add(k.saturating_mul(self.config.period_ns))
     }
-}
-
-/// Waits until `monotonic_ns() ≥ deadline_ns`: sleeps until `deadline − spin_ns` (recomputed
-/// from the absolute deadline after every wake-up), then spins. Returns when it woke.
-pub fn sleep_until_ns(deadline_ns: i64, spin_ns: i64) -> i64 {
-    let now = || u64::try_from(monotonic_ns()).unwrap_or(0);
-    let woke = netem::clock::sleep_until_on(
-        now,
-        u64::try_from(deadline_ns).unwrap_or(0),
-        u64::try_from(spin_ns).unwrap_or(0),
-    );
-    i64::try_from(woke).unwrap_or(i64::MAX)
 }
 
 #[cfg(test)]

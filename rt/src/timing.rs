@@ -1,8 +1,7 @@
 //! [`LoopTiming`]: the timing statistics of a periodic loop, recorded lock-free from the loop
 //! thread and read from any other.
 //!
-//! Three histograms with 1 µs bins up to 10 ms (values beyond go to an overflow count; the
-//! maximum is kept exactly):
+//! Three [`Histogram`]s (0.1 % buckets, exact maximum):
 //! - **period**: time between the starts of consecutive ticks;
 //! - **lateness**: how long after its deadline a tick started;
 //! - **work**: from a tick's start to the loop's next wait (what the tick cost).
@@ -13,40 +12,26 @@
 
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering::Relaxed};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-/// Bin width \[ns\].
-const BIN_NS: i64 = 1_000;
-/// Bins: 0 to 10 ms.
-const BINS: usize = 10_000;
+use crate::histogram::{Histogram, Summary};
 
 /// The statistics of one loop.
 #[derive(Debug)]
 pub struct LoopTiming {
     nominal_period_ns: i64,
     spin_ns: i64,
-    period: Linear,
-    lateness: Linear,
-    work: Linear,
+    period: Histogram,
+    lateness: Histogram,
+    work: Histogram,
     ticks: AtomicU64,
     overruns: AtomicU64,
     skipped: AtomicU64,
     last_start_ns: AtomicI64,
 }
 
-/// Three quantiles of a distribution \[µs\].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct Quantiles {
-    /// Median \[µs\] (1 µs resolution).
-    pub p50_us: f64,
-    /// 99th percentile \[µs\] (1 µs resolution).
-    pub p99_us: f64,
-    /// Largest value \[µs\], exact.
-    pub max_us: f64,
-}
-
 /// A summary of [`LoopTiming`], for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TimingReport {
     /// Nominal period \[µs\].
     pub nominal_period_us: f64,
@@ -55,11 +40,11 @@ pub struct TimingReport {
     /// Ticks run.
     pub ticks: u64,
     /// Time between consecutive tick starts.
-    pub period: Quantiles,
+    pub period: Summary,
     /// Start time after the deadline.
-    pub lateness: Quantiles,
+    pub lateness: Summary,
     /// Work per tick.
-    pub work: Quantiles,
+    pub work: Summary,
     /// Ticks that started more than half a period late.
     pub overruns: u64,
     /// Ticks given up after stalls longer than the catch-up budget.
@@ -72,9 +57,9 @@ impl LoopTiming {
         LoopTiming {
             nominal_period_ns,
             spin_ns,
-            period: Linear::new(),
-            lateness: Linear::new(),
-            work: Linear::new(),
+            period: Histogram::new(),
+            lateness: Histogram::new(),
+            work: Histogram::new(),
             ticks: AtomicU64::new(0),
             overruns: AtomicU64::new(0),
             skipped: AtomicU64::new(0),
@@ -111,70 +96,11 @@ impl LoopTiming {
             nominal_period_us: self.nominal_period_ns as f64 / 1e3,
             spin_us: self.spin_ns as f64 / 1e3,
             ticks: self.ticks.load(Relaxed),
-            period: self.period.quantiles(),
-            lateness: self.lateness.quantiles(),
-            work: self.work.quantiles(),
+            period: self.period.summary(),
+            lateness: self.lateness.summary(),
+            work: self.work.summary(),
             overruns: self.overruns.load(Relaxed),
             skipped_ticks: self.skipped.load(Relaxed),
-        }
-    }
-}
-
-/// Counts in 1 µs bins, an overflow count and the exact maximum.
-#[derive(Debug)]
-struct Linear {
-    bins: Box<[AtomicU64]>,
-    overflow: AtomicU64,
-    count: AtomicU64,
-    max_ns: AtomicI64,
-}
-
-impl Linear {
-    fn new() -> Linear {
-        Linear {
-            bins: (0..BINS).map(|_| AtomicU64::new(0)).collect(),
-            overflow: AtomicU64::new(0),
-            count: AtomicU64::new(0),
-            max_ns: AtomicI64::new(0),
-        }
-    }
-
-    /// Records `value_ns` (negative values count as 0).
-    fn record(&self, value_ns: i64) {
-        let v = value_ns.max(0);
-        match usize::try_from(v / BIN_NS)
-            .ok()
-            .and_then(|i| self.bins.get(i))
-        {
-            Some(bin) => bin.fetch_add(1, Relaxed),
-            None => self.overflow.fetch_add(1, Relaxed),
-        };
-        self.count.fetch_add(1, Relaxed);
-        self.max_ns.fetch_max(v, Relaxed);
-    }
-
-    fn quantiles(&self) -> Quantiles {
-        let count = self.count.load(Relaxed);
-        let max_us = self.max_ns.load(Relaxed) as f64 / 1e3;
-        let quantile = |q: f64| -> f64 {
-            if count == 0 {
-                return 0.0;
-            }
-            let rank = ((q * count as f64).ceil() as u64).clamp(1, count);
-            let mut seen = 0;
-            for (i, bin) in self.bins.iter().enumerate() {
-                seen += bin.load(Relaxed);
-                if seen >= rank {
-                    // The bin's centre, never above the exact maximum.
-                    return ((i as f64 + 0.5) * BIN_NS as f64 / 1e3).min(max_us);
-                }
-            }
-            max_us
-        };
-        Quantiles {
-            p50_us: quantile(0.5),
-            p99_us: quantile(0.99),
-            max_us,
         }
     }
 }
@@ -197,16 +123,21 @@ mod tests {
         let r = t.report();
         assert_eq!(r.ticks, 100);
         assert_eq!(r.overruns, 1);
-        assert!((r.lateness.p50_us - 2.5).abs() < 1e-9, "{r:?}");
+        // 2 µs is in the histogram's exact range.
+        assert_eq!(r.lateness.p50_us, 2.0, "{r:?}");
         assert!((r.lateness.max_us - 700.0).abs() < 1e-9);
-        assert!((r.period.p50_us - 1000.5).abs() < 1e-9, "{r:?}");
+        // Periods of 1000 µs (and 1698 / 302 µs around the late tick): within a bucket (0.1 %).
+        assert!((r.period.p50_us / 1000.0 - 1.0).abs() < 1e-3, "{r:?}");
         assert!((r.period.max_us - 1698.0).abs() < 1e-9, "{r:?}");
-        // The 20 µs bin's centre, capped by the exact maximum (20.099 µs).
-        assert!((r.work.p99_us - 20.099).abs() < 1e-9, "{r:?}");
+        // Work 20.000–20.099 µs: the 99th value's bucket, capped by the exact maximum.
+        assert!(
+            r.work.p99_us <= 20.099 && r.work.p99_us >= 20.098 * (1.0 - 1e-3),
+            "{r:?}"
+        );
     }
 
     #[test]
-    fn values_beyond_the_bins_count_in_the_maximum() {
+    fn long_stalls_count_in_the_maximum() {
         let t = LoopTiming::new(1_000_000, 0);
         t.record_work(50_000_000);
         let r = t.report();

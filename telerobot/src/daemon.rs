@@ -24,11 +24,11 @@ use mmt::scene::{CloudKind, Scene};
 use mmt::sim::camera::Camera;
 use mmt::sim::world::World;
 use protocol::telerobot_to_operator::SceneSummary;
-use rt::{LatencyReport, LinkReport, Periodic, PeriodicConfig, Shutdown, TimingReport};
+use rt::monotonic_ns;
+use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
-use transport::clock::monotonic_ns;
-use transport::{Identity, LinkTuning, Mailbox};
+use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::bridge::SimBridge;
 use crate::camera::{self, CameraFeed};
@@ -150,7 +150,7 @@ pub struct Summary {
     pub last: SnapshotReport,
     /// Command receipt − sample time [µs]: the uplink's one-way latency when both daemons share
     /// one clock (one host); offset by the clock difference otherwise.
-    pub command_latency: LatencyReport,
+    pub command_latency: rt::Summary,
     /// Camera frames indexed and sent, and refused.
     pub camera_frames: (u64, u64),
     /// Commands lost to a full command queue.
@@ -213,7 +213,8 @@ impl Telerobot {
             ..config.periodic
         };
         periodic_config.validate()?;
-        let runtime = rt::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
+        let runtime =
+            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
         let server = {
@@ -380,7 +381,7 @@ impl Telerobot {
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
             },
-            command_latency: LatencyReport::of_samples(&mut latencies),
+            command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),

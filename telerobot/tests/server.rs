@@ -12,9 +12,9 @@ use protocol::telerobot_to_operator::{
     self as t2o, Contact, ContactState, ModelStructure, Refusal, SceneSummary,
 };
 use protocol::{Header, PROTOCOL_VERSION};
+use rt::monotonic_ns;
 use telerobot::net::{self, Datagram, NetConfig, TelerobotLink};
 use tokio::sync::oneshot;
-use transport::clock::monotonic_ns;
 use transport::endpoint::{CertificateFailure, certificate_failure};
 use transport::framing;
 use transport::{CloseCode, Identity, LinkTuning, SERVER_NAME, TelerobotPin};

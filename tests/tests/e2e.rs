@@ -17,9 +17,9 @@ use protocol::handshake::HandshakeError;
 use protocol::operator_to_telerobot::{self as o2t, Command};
 use protocol::telerobot_to_operator::{self as t2o, Refusal, Welcome};
 use rt::Shutdown;
+use rt::monotonic_ns;
 use tests::*;
 use transport::Identity;
-use transport::clock::monotonic_ns;
 
 /// One delay case: 10 s of the exp-1 script through the shim; the cross-correlation finds the
 /// set delay.

@@ -32,7 +32,7 @@ use crossbeam_queue::ArrayQueue;
 pub struct Received<T> {
     /// The message.
     pub message: T,
-    /// When the network task received it [ns, [`crate::clock::monotonic_ns`]].
+    /// When the network task received it [ns, [`rt::monotonic_ns`]].
     pub received_ns: i64,
     /// The connection it came on (increases by one per accepted session; see the daemons'
     /// status). Sequence numbers and clocks restart with a new session.

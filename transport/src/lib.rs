@@ -15,19 +15,22 @@
 //!   (bounded queues that drop the oldest, latest-value slots, a doorbell) — read its contract;
 //! - [`stats`]: link counters as atomics, and the per-connection datagram bookkeeping over
 //!   `protocol::session`;
-//! - [`clock`]: the monotonic clock both daemons stamp with.
+//! - [`report`]: the report form of the link counters;
+//! - [`network_runtime`]: the one-worker tokio runtime of a daemon's network task.
+//!
+//! The clock every stamp is read from is [`rt::monotonic_ns`].
 //!
 //! What it is not: no session logic of its own (sequence numbers, RTT, clock offset and the
 //! handshake checks are `protocol`'s), no message types, no real-time loop, and no policy about
 //! who may connect (the telerobot's `net` module decides; this crate only enforces the pins).
 //! The daemons' network tasks (`telerobot::net`, `operator::net`) are built from these pieces.
 
-pub mod clock;
 pub mod endpoint;
 pub mod framing;
 pub mod handoff;
 pub mod identity;
 pub mod pin;
+pub mod report;
 pub mod stats;
 pub mod tuning;
 
@@ -35,5 +38,16 @@ pub use endpoint::{ALPN, CloseCode, EndpointError, FRAMING_VERSION, SERVER_NAME}
 pub use handoff::{Mailbox, Outbox, Received};
 pub use identity::{Identity, IdentityError};
 pub use pin::{OperatorPins, TelerobotPin};
+pub use report::LinkReport;
 pub use stats::{DatagramLink, LinkSnapshot, LinkStats};
 pub use tuning::{Congestion, LinkTuning};
+
+/// The network runtime of a daemon: tokio with one worker thread named `name` (the QUIC
+/// endpoint's few thousand datagrams a second need no more; the cores are the loops').
+pub fn network_runtime(name: &str) -> std::io::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name(name)
+        .enable_all()
+        .build()
+}

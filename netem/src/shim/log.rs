@@ -53,7 +53,7 @@ impl LogFate {
     }
 }
 
-/// One row of the log. Times in ns since [`crate::clock::epoch`].
+/// One row of the log. Times in ns of [`rt::monotonic_ns`].
 #[derive(Clone, Copy, Debug)]
 pub(super) struct LogRecord {
     pub(super) dir: Direction,

@@ -21,7 +21,9 @@
 //!   and [`ShimHandle::shutdown`] joins every thread. Packets still queued are discarded and
 //!   counted.
 //!
-//! [`now_ns`]: crate::clock::now_ns
+//! Times on the shim's axis (what the link model, the queue and the log take) are
+//! [`rt::monotonic_ns`] as `u64` ([`now_ns`]), so an in-process peer compares its own stamps
+//! with the log directly.
 
 mod log;
 mod stats;
@@ -38,10 +40,18 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::clock::DEFAULT_SPIN_WINDOW_NS;
+use rt::Histogram;
+
 use crate::model::{ConfigError, Link, LinkConfig};
 use crate::queue::DueQueue;
-use crate::stats::Histogram;
+
+/// Default spin window of the scheduler \[ns\] ([`rt::clock::DEFAULT_SPIN_WINDOW_NS`]).
+pub const DEFAULT_SPIN_WINDOW_NS: u64 = rt::clock::DEFAULT_SPIN_WINDOW_NS.unsigned_abs();
+
+/// Now on the shim's time axis: [`rt::monotonic_ns`] as `u64` \[ns\].
+pub fn now_ns() -> u64 {
+    rt::monotonic_ns().unsigned_abs()
+}
 
 pub use log::CSV_HEADER;
 pub use stats::{DirectionStats, ShimStats};

@@ -5,7 +5,7 @@ use std::sync::atomic::Ordering::Relaxed;
 
 use super::{Direction, Shared, lock};
 use crate::model::LinkCounters;
-use crate::stats::{Histogram, LatencySummary};
+use rt::{Histogram, Summary};
 
 /// Counters of one direction.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -27,7 +27,7 @@ pub struct DirectionStats {
     /// Copies whose send call failed.
     pub send_errors: u64,
     /// Release lateness: actual send time minus due time.
-    pub lateness: LatencySummary,
+    pub lateness: Summary,
     /// The link model's own totals.
     pub link: LinkCounters,
 }
@@ -40,7 +40,7 @@ pub struct ShimStats {
     /// Forward → client.
     pub down: DirectionStats,
     /// Release lateness of both directions together.
-    pub lateness: LatencySummary,
+    pub lateness: Summary,
     /// Down copies dropped because no client had sent yet.
     pub no_client: u64,
     /// Receive errors (e.g. ICMP port unreachable from `--forward`).

@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 
 use super::log::{LogFate, LogRecord, LogSink};
 use super::{Direction, POLL, Shared, ShimError, lock};
-use crate::clock::{now_ns, set_realtime_priority, set_timer_slack_ns};
+use rt::thread::{set_realtime_priority, set_timer_slack_ns};
+
+use super::now_ns;
 use crate::model::{Delivery, DropReason, Fate};
 use crate::queue::{Due, DueQueue};
 
@@ -283,7 +285,8 @@ impl Scheduler {
                 client.map(|addr| self.sockets.front.send_to(&item.bytes, addr))
             }
         };
-        self.shared.lateness[index].record(release_ns.saturating_sub(due_ns));
+        self.shared.lateness[index]
+            .record(i64::try_from(release_ns.saturating_sub(due_ns)).unwrap_or(i64::MAX));
         let fate = match sent {
             Some(Ok(_)) => {
                 self.shared.forwarded[index].fetch_add(1, Relaxed);

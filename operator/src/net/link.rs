@@ -141,7 +141,7 @@ pub fn link(
 
 impl OperatorLink {
     /// Queues a command. Fill the content and `header.sample_time_ns` (the device read time,
-    /// on `transport::clock::monotonic_ns`); the network task stamps the rest of the header.
+    /// on `rt::monotonic_ns`); the network task stamps the rest of the header.
     /// Returns `false` if the oldest queued command was dropped. RT-safe.
     pub fn send_command(&self, command: Command) -> bool {
         self.shared.outbox.push(command)

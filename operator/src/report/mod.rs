@@ -23,8 +23,9 @@ use mmt::scene::Scene;
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
-use rt::{LatencyReport, LinkReport, Quantiles, TimingReport};
+use rt::{Summary, TimingReport};
 use serde::Serialize;
+use transport::LinkReport;
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
@@ -56,7 +57,7 @@ pub struct NetworkedReport {
     pub link: LinkReport,
     /// Measurement receipt − send time mapped with the clock offset: the downlink's one-way
     /// latency \[µs\].
-    pub downlink_latency: LatencyReport,
+    pub downlink_latency: Summary,
     /// Measurements received (and lost to a full queue before the report thread took them).
     pub measurements: (u64, u64),
     /// Sessions the haptic loop ran (1 + reconnections).
@@ -94,7 +95,7 @@ pub struct NetworkedReport {
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct ShimReport {
     /// Release lateness (actual − due send time), both directions \[µs\].
-    pub lateness: LatencyReport,
+    pub lateness: Summary,
     /// Datagrams forwarded up (operator → telerobot) and down.
     pub forwarded: (u64, u64),
     /// Datagrams dropped by the link model (loss, queue limit), up and down.
@@ -104,7 +105,7 @@ pub struct ShimReport {
 impl From<&netem::ShimStats> for ShimReport {
     fn from(s: &netem::ShimStats) -> Self {
         ShimReport {
-            lateness: LatencyReport::of_summary(&s.lateness),
+            lateness: s.lateness,
             forwarded: (s.up.forwarded, s.down.forwarded),
             dropped: (
                 s.up.dropped_loss + s.up.dropped_limit,
@@ -205,7 +206,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         loop_timing: facts.timing,
         missing_ticks,
         link: facts.link,
-        downlink_latency: LatencyReport::of_samples(&mut downlink),
+        downlink_latency: Summary::of_samples(&mut downlink),
         measurements: (
             rec.measurements.len() as u64,
             facts.measurements_overwritten,
@@ -331,8 +332,8 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
     // p50 / p99 / max of a distribution in µs, or in ms.
-    let us = |q: &Quantiles| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
-    let ms = |q: &Quantiles| {
+    let us = |q: &Summary| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
+    let ms = |q: &Summary| {
         format!(
             "{:.2} / {:.2} / {:.2} ms",
             q.p50_us / 1e3,
@@ -409,17 +410,13 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         opt(l.clock_offset_ms, "ms"),
     );
     // One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
-    let mut latency = |name: &str, l: &LatencyReport| {
-        let q = l.quantiles();
-        row(name, ms(&q));
+    let mut latency = |name: &str, l: &Summary| {
+        row(name, ms(l));
         if let Some(d) = r.set_delay_ms {
-            let beyond = |v: f64| v - d * 1e3;
-            let extra = Quantiles {
-                p50_us: beyond(q.p50_us),
-                p99_us: beyond(q.p99_us),
-                max_us: beyond(q.max_us),
-            };
-            row("  beyond the set delay p50 / p99 / max", us(&extra));
+            row(
+                "  beyond the set delay p50 / p99 / max",
+                us(&l.shifted(-d * 1e3)),
+            );
         }
     };
     if let Some(t) = &r.telerobot {
@@ -441,10 +438,7 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         row("  ticks, overruns, skipped", count(&t.timing));
     }
     if let Some(s) = &r.shim {
-        row(
-            "netem release lateness p50 / p99 / max",
-            us(&s.lateness.quantiles()),
-        );
+        row("netem release lateness p50 / p99 / max", us(&s.lateness));
     }
     let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
     row(

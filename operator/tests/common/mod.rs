@@ -14,10 +14,10 @@ use operator::net::{self as op_net, NetError, OperatorLink};
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{Contact, ContactState, ModelStructure, SceneSummary};
+use rt::monotonic_ns;
 use telerobot::net::{self as tr_net, Datagram, TelerobotLink};
 use tokio::sync::oneshot;
 use transport::Identity;
-use transport::clock::monotonic_ns;
 
 pub const MS: i64 = 1_000_000;
 

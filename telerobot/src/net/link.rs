@@ -87,7 +87,7 @@ impl SessionStatus {
         self.session.load(Relaxed)
     }
 
-    /// When the current session began [ns, `transport::clock::monotonic_ns`]. Lock-free.
+    /// When the current session began [ns, `rt::monotonic_ns`]. Lock-free.
     pub fn since_ns(&self) -> i64 {
         self.since_ns.load(Relaxed)
     }

@@ -1,64 +1,12 @@
-//! Report forms (serialisable, in µs and ms) of latency histograms and link counters, shared by
-//! both daemons' reports.
+//! [`LinkReport`]: the report form of [`LinkSnapshot`] (counts, RTT and clock in ms), shared by both
+//! daemons' reports.
 
-use netem::stats::LatencySummary;
-use serde::Serialize;
-use transport::LinkSnapshot;
+use serde::{Deserialize, Serialize};
 
-use crate::timing::Quantiles;
-
-/// A latency distribution \[µs\].
-#[derive(Clone, Copy, Debug, Default, Serialize)]
-pub struct LatencyReport {
-    /// Samples.
-    pub count: u64,
-    /// Median \[µs\].
-    pub p50_us: f64,
-    /// 99th percentile \[µs\].
-    pub p99_us: f64,
-    /// Largest \[µs\].
-    pub max_us: f64,
-}
-
-impl LatencyReport {
-    /// From a netem histogram's summary (e.g. the shim's release lateness).
-    pub fn of_summary(s: &LatencySummary) -> LatencyReport {
-        LatencyReport {
-            count: s.count,
-            p50_us: s.p50_ns as f64 / 1e3,
-            p99_us: s.p99_ns as f64 / 1e3,
-            max_us: s.max_ns as f64 / 1e3,
-        }
-    }
-
-    /// The three quantiles.
-    pub fn quantiles(&self) -> Quantiles {
-        Quantiles {
-            p50_us: self.p50_us,
-            p99_us: self.p99_us,
-            max_us: self.max_us,
-        }
-    }
-
-    /// From samples \[ns\] (sorts them).
-    pub fn of_samples(samples: &mut [i64]) -> LatencyReport {
-        samples.sort_unstable();
-        let n = samples.len();
-        let at = |q: f64| {
-            let rank = ((q * n as f64).ceil() as usize).clamp(1, n.max(1)) - 1;
-            samples.get(rank).map_or(0.0, |v| *v as f64 / 1e3)
-        };
-        LatencyReport {
-            count: n as u64,
-            p50_us: at(0.5),
-            p99_us: at(0.99),
-            max_us: samples.last().map_or(0.0, |v| *v as f64 / 1e3),
-        }
-    }
-}
+use crate::stats::LinkSnapshot;
 
 /// [`LinkSnapshot`] for reports.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LinkReport {
     /// Datagrams handed to quinn.
     pub sent: u64,
