@@ -1,5 +1,7 @@
 //! Shared test helpers: exact excitation data, phasor fits and reference least squares.
 
+#![allow(clippy::unwrap_used)] // test helpers: a failed solve is a failed test
+
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 

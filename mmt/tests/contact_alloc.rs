@@ -11,9 +11,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use mmt::cloud::Pose;
-use mmt::cloud::synthetic::{SceneObject, Shape, SyntheticCloud};
-use mmt::contact::{CloudIndex, Neighbours, Proxy, ProxyConfig, workload};
+use mmt::contact::{CloudIndex, Neighbours, Proxy, ProxyConfig};
 use rand::SeedableRng;
+use sim::synthetic::{SceneObject, Shape, SyntheticCloud};
+use sim::workload;
 
 struct Counting;
 

@@ -10,9 +10,9 @@
 use mmt::filter::{RegressorConfig, RegressorFilter};
 use mmt::model::{Physical, col};
 use mmt::rls::{Mode, Outcome, Rls, RlsConfig};
-use mmt::sim::{SensorNoise, SimConfig, SlidingObjectSim};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
+use sim::{SensorNoise, SimConfig, SlidingObjectSim};
 
 const H: f64 = 1e-3;
 /// Skip updates this long after contact onset (`DESIGN.md` §11.3) [ticks].

@@ -12,11 +12,11 @@
 
 use std::time::{Duration, Instant};
 
-use mmt::experiment::Series;
-use mmt::node::operator::{OperatorConfig, OperatorNode};
-use mmt::scene::Scene;
+use metrics::Series;
+use node::operator::{OperatorConfig, OperatorNode};
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown};
+use sim::scene::Scene;
 
 use crate::device::{DeviceError, DeviceSpec, OpenOptions, open_device};
 use crate::haptic::{Exchange, HapticLoop};
@@ -85,7 +85,7 @@ pub enum RunError {
     Settings(#[from] SettingsError),
     /// The operator node could not be built.
     #[error("operator node: {0}")]
-    Node(#[from] mmt::node::telerobot::NodeError),
+    Node(#[from] node::telerobot::NodeError),
     /// No session within the timeout.
     #[error("no session with the telerobot at {addr} within {timeout:?}{last}")]
     NoSession {

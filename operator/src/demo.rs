@@ -13,9 +13,9 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use mmt::scene::Scene;
 use netem::{LinkConfig, ShimConfig};
 use rt::{PeriodicConfig, Shutdown};
+use sim::scene::Scene;
 use telerobot::Telerobot;
 use transport::LinkTuning;
 use transport::identity::{self, Identity};
@@ -194,7 +194,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
             periodic,
             realtime_priority: config.realtime_priority,
             first_session_timeout: Some(Duration::from_secs(15)),
-            node: mmt::node::operator::OperatorConfig::default(),
+            node: node::operator::OperatorConfig::default(),
             experiment: "demo".to_owned(),
             known: Some(Known {
                 scene,

@@ -1,6 +1,6 @@
 //! The operator's 1 kHz haptic loop: device → operator node → safety layer → device force, and
 //! the command out. It steps `mmt`'s operator node exactly as the in-process harness does
-//! (`mmt::experiment`), on its own OS thread.
+//! (`lab::experiment`), on its own OS thread.
 //!
 //! Per tick (tick `k`, nominal time `now = start + k·period`; the node's time is always nominal,
 //! the device's and the safety layer's is the tick's actual start):
@@ -23,8 +23,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use mmt::contact::CloudIndex;
-use mmt::node::operator::{OperatorNode, OperatorStats};
 use mmt::render::RendererStats;
+use node::operator::{OperatorNode, OperatorStats};
 use protocol::telerobot_to_operator::{Message, Parameters, SurfaceFrame};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
@@ -32,7 +32,7 @@ use transport::Mailbox;
 use crate::device::{ForceRecord, HapticDevice};
 use crate::net::OperatorLink;
 use crate::safety::{ForceTick, Model, SafetyLayer, SafetyStats};
-use crate::vec3::Vec3;
+use mmt::vec3::Vec3;
 
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use mmt::cloud::{CloudFrame, Pose};
 use mmt::contact::CloudIndex;
-use mmt::node::operator::{OperatorConfig, OperatorNode};
+use node::operator::{OperatorConfig, OperatorNode};
 use protocol::telerobot_to_operator::Measurement;
 use rt::Shutdown;
 

@@ -26,4 +26,3 @@ pub mod net;
 pub mod report;
 pub mod safety;
 pub mod settings;
-pub mod vec3;

@@ -7,9 +7,9 @@
 //! scene inside the settings is a template whose ground truth the operator node never reads.
 
 use mmt::contact::ProxyError;
-use mmt::node::{NodeSettings, structure_from_wire};
-use mmt::scene::{ProxySection, Scene};
+use node::{NodeSettings, structure_from_wire};
 use protocol::telerobot_to_operator::SceneSummary;
+use sim::scene::{ProxySection, Scene};
 
 /// The control rates the haptic loop runs at \[Hz\].
 pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 100.0..=10_000.0;
@@ -48,7 +48,7 @@ pub fn node_settings(summary: &SceneSummary) -> Result<NodeSettings, SettingsErr
 mod tests {
     use super::*;
     use mmt::model::Structure;
-    use mmt::node::structure_to_wire;
+    use node::structure_to_wire;
 
     fn summary(scene: &Scene) -> SceneSummary {
         SceneSummary {

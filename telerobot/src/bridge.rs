@@ -1,14 +1,14 @@
 //! The robot bridge: what the telerobot loop moves and reads each tick (`DESIGN.md` §5).
 //!
 //! [`RobotBridge`] is the interface; [`SimBridge`] (the default) is the scene's simulated world
-//! (`mmt::sim::world::World`): the robot tracks the commanded position exactly, as in the
+//! (`sim::world::World`): the robot tracks the commanded position exactly, as in the
 //! thesis's set-up 1, and its sensors read through the scene's noise model. A real-robot bridge
 //! would implement the same trait behind a cargo feature.
 
-use mmt::node::telerobot::Target;
-use mmt::scene::Scene;
-use mmt::sim::SimError;
-use mmt::sim::world::{Sample3, World};
+use node::telerobot::Target;
+use sim::SimError;
+use sim::scene::Scene;
+use sim::world::{Sample3, World};
 
 /// What the robot did in one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

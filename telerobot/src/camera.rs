@@ -18,10 +18,10 @@ use std::time::Duration;
 
 use mmt::cloud::CloudFrame;
 use mmt::contact::CloudIndex;
-use mmt::sim::camera::Camera;
-use mmt::sim::world::World;
 use protocol::telerobot_to_operator as wire;
 use rt::Shutdown;
+use sim::camera::Camera;
+use sim::world::World;
 use transport::Mailbox;
 
 use crate::net::TelerobotLink;

@@ -11,8 +11,8 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
-use mmt::scene::{Scene, SceneError};
 use rt::{PeriodicConfig, Shutdown};
+use sim::scene::{Scene, SceneError};
 use transport::LinkTuning;
 use transport::identity::{self, Identity, IdentityError};
 use transport::tuning::TuningError;

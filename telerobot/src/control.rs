@@ -1,5 +1,5 @@
 //! The telerobot's 1 kHz loop: steps `mmt`'s telerobot node exactly as the in-process harness
-//! does (`mmt::experiment`), against the robot bridge, on its own OS thread.
+//! does (`lab::experiment`), against the robot bridge, on its own OS thread.
 //!
 //! Per tick (at the tick's nominal time `now`):
 //! 1. every command queued since the last tick goes to the node (its playout buffer orders them);
@@ -17,8 +17,8 @@
 
 use std::sync::Arc;
 
-use mmt::node::NodeSettings;
-use mmt::node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
+use node::NodeSettings;
+use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
 use protocol::telerobot_to_operator::Message;
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;

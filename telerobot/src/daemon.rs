@@ -17,17 +17,17 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use mmt::experiment::{ParameterReport, parameter_report};
-use mmt::node::telerobot::TelerobotNode;
-use mmt::node::{NodeSettings, structure_to_wire};
-use mmt::scene::{CloudKind, Scene};
-use mmt::sim::camera::Camera;
-use mmt::sim::world::World;
+use metrics::{ParameterReport, parameter_report};
+use node::telerobot::TelerobotNode;
+use node::{NodeSettings, structure_to_wire};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
+use sim::camera::Camera;
+use sim::scene::{CloudKind, Scene};
+use sim::world::World;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::bridge::SimBridge;
@@ -114,10 +114,10 @@ pub enum DaemonError {
     Loop(#[from] rt::PeriodicError),
     /// The node could not be built from the scene.
     #[error("telerobot node: {0}")]
-    Node(#[from] mmt::node::telerobot::NodeError),
+    Node(#[from] node::telerobot::NodeError),
     /// The simulated world could not be built from the scene.
     #[error("simulated world: {0}")]
-    Sim(#[from] mmt::sim::SimError),
+    Sim(#[from] sim::SimError),
     /// The server could not start.
     #[error(transparent)]
     Net(#[from] net::NetError),
@@ -171,7 +171,7 @@ pub struct SnapshotReport {
     /// Session served.
     pub session: u64,
     /// Node counters.
-    pub node: mmt::node::telerobot::TelerobotStats,
+    pub node: node::telerobot::TelerobotStats,
     /// Estimators confident.
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).

@@ -5,7 +5,7 @@
 //!   shutdown signal (what `telerobot run` calls): the network runtime, the 1 kHz loop, the camera
 //!   thread and a housekeeping thread;
 //! - [`control`]: the real-time loop stepping `mmt`'s telerobot node against the robot bridge,
-//!   exactly as the in-process harness steps it (`mmt::experiment`);
+//!   exactly as the in-process harness steps it (`lab::experiment`);
 //! - [`bridge`]: the robot bridge trait and the simulated bridge (the scene's world);
 //! - [`camera`]: the simulated camera and its kd-tree, off the real-time thread;
 //! - [`net`]: the QUIC server and its lock-free hand-off to the loop;

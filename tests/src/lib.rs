@@ -13,7 +13,6 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use mmt::scene::Scene;
 use netem::{LinkConfig, ShimConfig, ShimHandle};
 use operator::app::{self, Known, Outcome, RunConfig, RunError};
 use operator::device::{DeviceSpec, OpenOptions};
@@ -22,6 +21,7 @@ use operator::safety::SafetyConfig;
 use protocol::operator_to_telerobot::{self as o2t, Hello};
 use protocol::telerobot_to_operator::{self as t2o, Welcome};
 use rt::{PeriodicConfig, Shutdown};
+use sim::scene::Scene;
 use telerobot::Telerobot;
 use transport::{Identity, LinkTuning, OperatorPins, SERVER_NAME, TelerobotPin, framing};
 
@@ -152,7 +152,7 @@ pub fn operator_config(
         },
         realtime_priority: None,
         first_session_timeout: Some(Duration::from_secs(15)),
-        node: mmt::node::operator::OperatorConfig::default(),
+        node: node::operator::OperatorConfig::default(),
         experiment: "e2e".into(),
         known: Some(Known {
             scene: Scene::exp1(),

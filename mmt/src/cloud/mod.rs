@@ -1,4 +1,4 @@
-//! Point clouds: frames, synthetic sources, file loaders and voxel downsampling
+//! Point-cloud frames: points in the world frame with their capture time and sensor pose
 //! (`DESIGN.md` §5, thesis appendix C and H.2.1).
 //!
 //! # Frames and units
@@ -9,18 +9,10 @@
 //! where the sensor was (`sensor_pose`, world ← sensor); points measured in the sensor frame are
 //! brought into the world frame with [`CloudFrame::from_sensor_points`].
 //!
-//! # Sources
-//!
-//! - [`synthetic`]: planes (finite patches at any orientation), boxes and spheres sampled on a grid,
-//!   with seeded Gaussian noise, dropout and a pose that moves with time.
-//! - [`format`]: PLY (ASCII, binary little- and big-endian) and PCD (ASCII, binary) parsers and
-//!   writers working on bytes; [`format::load_path`] is the one helper that reads a file.
-//! - [`voxel`]: voxel-grid downsampling (centroid per voxel, deterministic order).
+//! Where frames come from is not this crate's business: synthetic clouds are the `sim` crate's,
+//! PLY/PCD files and voxel downsampling the `cloud-io` crate's.
 
-pub mod format;
 mod pose;
-pub mod synthetic;
-pub mod voxel;
 
 pub use pose::Pose;
 

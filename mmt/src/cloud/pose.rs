@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::vec3::{self, V3};
+use crate::vec3::{self, Vec3};
 
 /// A rigid transform `x_parent = R · x_child + t`: where a child frame (a sensor, an object) sits
 /// in its parent frame (the world). Translation in metres; `R` a proper rotation matrix
@@ -177,7 +177,7 @@ impl Pose {
 }
 
 /// Rodrigues' rotation matrix about a unit `axis` by `angle` [rad].
-fn axis_angle_matrix(axis: V3, angle: f64) -> [[f64; 3]; 3] {
+fn axis_angle_matrix(axis: Vec3, angle: f64) -> [[f64; 3]; 3] {
     let (s, c) = angle.sin_cos();
     let t = 1.0 - c;
     let [x, y, z] = axis;

@@ -17,7 +17,7 @@
 //! The roots are computed without cancellation (`q = h + sign(h)·√disc`, roots `q/‖c‖²` and
 //! `(‖b‖² − a²)/q`), so a root near zero keeps its relative precision.
 
-use crate::vec3::{self, V3};
+use crate::vec3::{self, Vec3};
 
 /// Both real roots `(low, high)` of eq. 28 for `a − ‖b − d c‖ = 0`, or `None` when the line
 /// `d ↦ d c` never comes within `a` of `b` (non-real roots) or `c` is zero or not finite.
@@ -48,7 +48,7 @@ pub fn sphere_line_roots(a: f64, b: [f64; 3], c: [f64; 3]) -> Option<(f64, f64)>
 /// touched. A point already closer than `a` blocks at once (`Some(0)`) if the motion approaches
 /// it, and never if the motion leaves it (the distance then only grows).
 #[inline]
-pub fn first_touch(a: f64, b: V3, dir: V3) -> Option<f64> {
+pub fn first_touch(a: f64, b: Vec3, dir: Vec3) -> Option<f64> {
     let h = vec3::dot(b, dir);
     if vec3::norm2(b) <= a * a {
         return (h > 0.0).then_some(0.0);
@@ -64,7 +64,7 @@ pub fn first_touch(a: f64, b: V3, dir: V3) -> Option<f64> {
 /// at offset `b` is `a` away and stays at least that far (the largest root). `None` when the
 /// point is already clear of the sphere for every `d ≥ 0` or never within `a` of the line.
 #[inline]
-pub fn clearing_distance(a: f64, b: V3, n: V3) -> Option<f64> {
+pub fn clearing_distance(a: f64, b: Vec3, n: Vec3) -> Option<f64> {
     sphere_line_roots(a, b, n)
         .map(|(_, high)| high)
         .filter(|&high| high >= 0.0)
@@ -77,12 +77,12 @@ mod tests {
     use rand_pcg::Pcg64;
 
     /// `f(d) = a − ‖b − d c‖`: concave, maximal at `d* = b·c/‖c‖²`.
-    fn f(a: f64, b: V3, c: V3, d: f64) -> f64 {
+    fn f(a: f64, b: Vec3, c: Vec3, d: f64) -> f64 {
         a - vec3::norm(vec3::sub(b, vec3::scale(c, d)))
     }
 
     /// Bisection for the sign change of `f` between `lo` and `hi`.
-    fn bisect(a: f64, b: V3, c: V3, mut lo: f64, mut hi: f64) -> f64 {
+    fn bisect(a: f64, b: Vec3, c: Vec3, mut lo: f64, mut hi: f64) -> f64 {
         let f_lo = f(a, b, c, lo);
         for _ in 0..200 {
             let mid = 0.5 * (lo + hi);
@@ -95,7 +95,7 @@ mod tests {
         0.5 * (lo + hi)
     }
 
-    fn random_v3(rng: &mut Pcg64, scale: f64) -> V3 {
+    fn random_v3(rng: &mut Pcg64, scale: f64) -> Vec3 {
         [0; 3].map(|_| rng.random_range(-scale..scale))
     }
 

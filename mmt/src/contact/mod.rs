@@ -22,7 +22,6 @@ pub mod distance;
 mod neighbours;
 mod proxy;
 mod surface;
-pub mod workload;
 
 pub use config::{ProxyConfig, ProxyError};
 pub use neighbours::{BruteForce, CloudIndex, IndexError, Neighbour, Neighbours};

@@ -8,7 +8,7 @@ use thiserror::Error;
 
 use super::density::DensityBound;
 use crate::cloud::CloudFrame;
-use crate::vec3::{self, V3};
+use crate::vec3::{self, Vec3};
 
 /// A cloud point found by a radius query: its index in the frame and its position [m] in `f64`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -242,7 +242,7 @@ impl Neighbours for BruteForce<'_> {
     }
 }
 
-fn rotate(r: &[[f64; 3]; 3], v: V3) -> V3 {
+fn rotate(r: &[[f64; 3]; 3], v: Vec3) -> Vec3 {
     [vec3::dot(r[0], v), vec3::dot(r[1], v), vec3::dot(r[2], v)]
 }
 
@@ -301,13 +301,13 @@ fn tree_rotation(points: &[[f32; 3]]) -> [[f64; 3]; 3] {
 /// backend so they cannot disagree.
 #[derive(Clone, Copy, Debug)]
 struct Ball {
-    centre: V3,
+    centre: Vec3,
     r2: f64,
 }
 
 impl Ball {
     /// `None` (an empty answer) for a NaN or negative radius or a non-finite centre.
-    fn new(centre: V3, radius: f64) -> Option<Ball> {
+    fn new(centre: Vec3, radius: f64) -> Option<Ball> {
         (radius >= 0.0 && vec3::is_finite(centre)).then_some(Ball {
             centre,
             r2: radius * radius,
@@ -331,7 +331,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
 
-    fn collect<N: Neighbours>(n: &N, c: V3, r: f64) -> Vec<u32> {
+    fn collect<N: Neighbours>(n: &N, c: Vec3, r: f64) -> Vec<u32> {
         let mut v = Vec::new();
         n.for_each_within(c, r, |nb| v.push(nb.index));
         v.sort_unstable();

@@ -53,7 +53,7 @@ use super::distance::{clearing_distance, first_touch};
 use super::neighbours::{Neighbour, Neighbours};
 use super::surface::{LocalSurface, SurfaceFrame, local_surface};
 use super::{ContactOutput, ContactState, ProxyConfig, ProxyError};
-use crate::vec3::{self, V3};
+use crate::vec3::{self, Vec3};
 
 /// Velocity steps shorter than this [m] are rounding noise (a slide along the tangent plane has
 /// `n̂·s` of order 1e-19 m) and are not taken: they would only defeat the query reuse.
@@ -82,11 +82,11 @@ const QUERY_MARGIN_OF_R3: f64 = 1.0 / 24.0;
 #[derive(Clone, Debug)]
 pub struct Proxy {
     config: ProxyConfig,
-    position: V3,
+    position: Vec3,
     /// `v̂` of eq. 12 [m/s]: the proxy's speed along `last_normal` in the last step, ≥ 0.
     normal_speed: f64,
     /// `n̂_{k−1}`: the normal that governed the last step.
-    last_normal: Option<V3>,
+    last_normal: Option<Vec3>,
     scratch: Scratch,
 }
 
@@ -208,7 +208,7 @@ impl Proxy {
     }
 
     /// Eq. 16–17: toward the HIP until `(r1+r2)/2` from the first point in the way.
-    fn free_step<N: Neighbours>(&mut self, cloud: &N, u: V3) -> V3 {
+    fn free_step<N: Neighbours>(&mut self, cloud: &N, u: Vec3) -> Vec3 {
         let len = vec3::norm(u);
         if len <= 0.0 {
             return [0.0; 3];
@@ -233,7 +233,7 @@ impl Proxy {
     /// surface there is then computed without a second query. A point that stops the proxy in an
     /// earlier segment is found by that segment's query, so the first segment with a touch ends
     /// the sweep.
-    fn sweep<N: Neighbours>(&mut self, cloud: &N, dir: V3, len: f64) -> f64 {
+    fn sweep<N: Neighbours>(&mut self, cloud: &N, dir: Vec3, len: f64) -> f64 {
         let c = self.config;
         let a = c.rest_distance_m();
         let from = self.position;
@@ -269,7 +269,7 @@ impl Proxy {
     }
 
     /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away.
-    fn entrenched_step(&self, n: V3) -> V3 {
+    fn entrenched_step(&self, n: Vec3) -> Vec3 {
         let c = &self.config;
         let (a, r1_sq) = (c.rest_distance_m(), c.r1_m * c.r1_m);
         let d = self
@@ -286,7 +286,7 @@ impl Proxy {
 
 /// Eq. 20–22: `d = γ‖u‖` within `r1` of the HIP, else `ζ r1`; slide along the tangent plane
 /// when pushing in (`n̂ᵀu < 0`), else move along `u`.
-fn contact_step(u: V3, normal: Option<V3>, c: &ProxyConfig) -> V3 {
+fn contact_step(u: Vec3, normal: Option<Vec3>, c: &ProxyConfig) -> Vec3 {
     let len = vec3::norm(u);
     if len <= 0.0 {
         return [0.0; 3];
@@ -333,10 +333,10 @@ fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {
 struct Scratch {
     buf: Vec<Neighbour>,
     cloud: u64,
-    centre: V3,
+    centre: Vec3,
     radius: f64,
     /// `(at, surface)`: [`local_surface`] at `at` over `buf`, valid until `buf` is refilled.
-    surface: Option<(V3, bool, LocalSurface)>,
+    surface: Option<(Vec3, bool, LocalSurface)>,
 }
 
 impl Default for Scratch {
@@ -358,7 +358,7 @@ impl Scratch {
     /// Kept out of line: inlined into the step, the query's code cost the surface passes
     /// about 2 µs per step (measured; register pressure in the hot loops).
     #[inline(never)]
-    fn ensure<N: Neighbours>(&mut self, cloud: &N, centre: V3, radius: f64, margin: f64) {
+    fn ensure<N: Neighbours>(&mut self, cloud: &N, centre: Vec3, radius: f64, margin: f64) {
         let held = self.cloud == cloud.cloud_id()
             && vec3::norm(vec3::sub(centre, self.centre)) + radius <= self.radius;
         if held {
@@ -380,7 +380,7 @@ impl Scratch {
     fn surface_at<N: Neighbours>(
         &mut self,
         cloud: &N,
-        at: V3,
+        at: Vec3,
         c: &ProxyConfig,
         with_point: bool,
     ) -> LocalSurface {

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::neighbours::Neighbour;
-use crate::vec3::{self, V3};
+use crate::vec3::{self, Vec3};
 
 /// The Wendland weight of eq. 15 for a point at distance `r` [m]: 1 within `r1`, 0 from `r3`
 /// on, and `(1 − t)⁴ (4t + 1)` with `t = (r − r1)/(r3 − r1)` between (C² smooth at both ends).
@@ -87,9 +87,9 @@ pub enum NormalEstimator {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct LocalSurface {
     /// Unit normal toward `centre`'s side; `None` without points or when eq. 14 cancels.
-    pub normal: Option<V3>,
+    pub normal: Option<Vec3>,
     /// Wendland-weighted centroid of the points; `None` when every weight is 0.
-    pub centroid: Option<V3>,
+    pub centroid: Option<Vec3>,
     /// Squared distance to the nearest point [m²] (∞ without points).
     pub nearest_d2: f64,
     /// Points within `r3`.
@@ -107,7 +107,7 @@ const PLANARITY: f64 = 2.0;
 /// The slice is summed in its order: the same slice gives the same bits; another backend's order
 /// agrees to rounding.
 pub(crate) fn local_surface(
-    centre: V3,
+    centre: Vec3,
     neighbours: &[Neighbour],
     r1: f64,
     r3: f64,
@@ -173,7 +173,12 @@ pub(crate) fn local_surface(
 }
 
 /// `Σψ(|y − (y·n) n|) x / Σψ`: the centroid weighted by in-plane distance.
-fn in_plane_centroid(centre: V3, neighbours: &[Neighbour], psi: &Wendland, n: V3) -> Option<V3> {
+fn in_plane_centroid(
+    centre: Vec3,
+    neighbours: &[Neighbour],
+    psi: &Wendland,
+    n: Vec3,
+) -> Option<Vec3> {
     let (mut weight, mut m1) = (0.0, [0.0; 3]);
     for nb in neighbours {
         let y = vec3::sub(nb.point, centre);
@@ -226,17 +231,17 @@ struct Sums {
     /// `Σψ`.
     weight: f64,
     /// `Σψ y`.
-    m1: V3,
+    m1: Vec3,
     /// `Σψ y yᵀ`: xx, xy, xz, yy, yz, zz.
     m2: [f64; 6],
     /// Eq. 14's `n'`, `Σψ (−y)/‖y‖` (only gathered when asked: it costs a division per point).
-    directions: V3,
+    directions: Vec3,
 }
 
 impl Sums {
     #[inline(always)]
     fn gather<const DIRECTIONS: bool>(
-        centre: V3,
+        centre: Vec3,
         neighbours: &[Neighbour],
         psi: &Wendland,
     ) -> Self {
@@ -276,7 +281,7 @@ impl Sums {
     }
 
     /// Eq. 14 normalised, `None` when the directions cancel.
-    fn eq14(&self) -> Option<V3> {
+    fn eq14(&self) -> Option<Vec3> {
         if vec3::norm(self.directions) > DEGENERATE_NORMAL * self.weight {
             vec3::normalize(self.directions)
         } else {
@@ -288,7 +293,7 @@ impl Sums {
 /// Unit normal (either sign) of the weighted least-squares plane through the points: the
 /// eigenvector of the smallest eigenvalue of their weighted covariance. `None` when the points
 /// do not span a plane.
-fn plane_normal(s: &Sums) -> Option<V3> {
+fn plane_normal(s: &Sums) -> Option<Vec3> {
     if s.weight <= 0.0 || !s.weight.is_finite() {
         return None;
     }
@@ -309,7 +314,7 @@ fn plane_normal(s: &Sums) -> Option<V3> {
 /// of a symmetric 3 × 3 matrix", CACM 4(4), 1961), the vector as the longest cross product of two
 /// rows of `A − λI`. `None` for an isotropic matrix (every direction an eigenvector) or
 /// non-finite input.
-fn symmetric3_smallest(a: &[[f64; 3]; 3]) -> Option<([f64; 3], V3)> {
+fn symmetric3_smallest(a: &[[f64; 3]; 3]) -> Option<([f64; 3], Vec3)> {
     let p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
     let q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
     let p2 = (a[0][0] - q).powi(2) + (a[1][1] - q).powi(2) + (a[2][2] - q).powi(2) + 2.0 * p1;
@@ -325,7 +330,7 @@ fn symmetric3_smallest(a: &[[f64; 3]; 3]) -> Option<([f64; 3], V3)> {
     let largest = q + 2.0 * p * phi.cos();
     let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
     let middle = 3.0 * q - largest - smallest;
-    let rows: [V3; 3] = std::array::from_fn(|i| {
+    let rows: [Vec3; 3] = std::array::from_fn(|i| {
         std::array::from_fn(|j| a[i][j] - if i == j { smallest } else { 0.0 })
     });
     let v = [
@@ -377,7 +382,7 @@ mod tests {
             }
             // A v = λ v for the smallest.
             let v = vec3::normalize(v).unwrap();
-            let av: V3 = std::array::from_fn(|i| (0..3).map(|j| a[i][j] * v[j]).sum());
+            let av: Vec3 = std::array::from_fn(|i| (0..3).map(|j| a[i][j] * v[j]).sum());
             let residual = vec3::norm(vec3::sub(av, vec3::scale(v, values[0])));
             assert!(
                 residual < 1e-7 * norm,
@@ -433,7 +438,7 @@ mod tests {
             [5.0, 1.0, 0.2],
         ] {
             let f = SurfaceFrame::from_normal(n).unwrap();
-            let close = |a: V3, b: V3| vec3::norm(vec3::sub(a, b)) < 1e-12;
+            let close = |a: Vec3, b: Vec3| vec3::norm(vec3::sub(a, b)) < 1e-12;
             assert!(close(vec3::cross(f.tangent1, f.tangent2), f.normal));
             assert!(vec3::dot(f.tangent1, f.normal).abs() < 1e-12);
             assert!((vec3::norm(f.tangent1) - 1.0).abs() < 1e-12);
@@ -454,7 +459,7 @@ mod tests {
             })
             .collect();
         let at =
-            |centre: V3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator, true);
+            |centre: Vec3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator, true);
         for estimator in [
             NormalEstimator::WeightedDirections,
             NormalEstimator::WeightedPlaneFit,

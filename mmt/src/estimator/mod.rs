@@ -450,6 +450,3 @@ impl Estimator {
         &self.config
     }
 }
-
-#[cfg(test)]
-mod tests;

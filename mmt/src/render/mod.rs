@@ -18,6 +18,7 @@ pub mod integrators;
 mod kelvin_voigt;
 pub mod reference;
 mod sliding;
+pub mod transfer;
 
 pub use kelvin_voigt::{KelvinVoigtRenderer, ShearRenderer, ShearState};
 pub use sliding::{SlidingMassRenderer, SlidingState};

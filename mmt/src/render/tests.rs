@@ -1,10 +1,10 @@
 use super::integrators::Method;
 use super::reference::{FrictionReference, LinearReference, Multisine, Tone};
 use super::*;
-use crate::analysis::transfer::transfer;
 use crate::model::backsolve::Params;
 use crate::model::gates::gate_physical;
 use crate::model::{Physical, Structure};
+use crate::render::transfer::transfer;
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;

@@ -2,8 +2,8 @@
 //! entrenchment cleared in one step, the sticking bound of eq. 23.
 
 use mmt::cloud::Pose;
-use mmt::cloud::synthetic::{SceneObject, Shape};
 use mmt::contact::{ContactState, NormalEstimator, ProxyConfig};
+use sim::synthetic::{SceneObject, Shape};
 
 use crate::support::*;
 
@@ -483,9 +483,9 @@ fn the_sticking_bound_of_eq_23_holds() {
 #[test]
 fn no_punch_through_between_noisy_grid_points_within_the_noise_aware_spacing() {
     use mmt::cloud::Pose;
-    use mmt::cloud::synthetic::{SceneObject, Shape, SyntheticCloud};
     use mmt::contact::{CloudIndex, Proxy, ProxyConfig};
     use rand::{Rng, SeedableRng};
+    use sim::synthetic::{SceneObject, Shape, SyntheticCloud};
     let cfg = ProxyConfig {
         r1_m: 0.004,
         r2_m: 0.006,

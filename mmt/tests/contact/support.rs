@@ -1,10 +1,10 @@
 //! Scenes, drivers and measures shared by the contact tests.
 
-use mmt::cloud::synthetic::{Motion, SceneObject, Shape, SyntheticCloud};
 use mmt::cloud::{CloudFrame, Pose};
 use mmt::contact::{CloudIndex, ContactOutput, Proxy, ProxyConfig};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
+use sim::synthetic::{Motion, SceneObject, Shape, SyntheticCloud};
 
 pub const RATE_HZ: f64 = 1000.0;
 

@@ -115,7 +115,7 @@ pub(super) fn run_cmd(
         periodic: args.periodic()?,
         realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
-        node: mmt::node::operator::OperatorConfig::default(),
+        node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
     };

@@ -20,7 +20,7 @@ use super::{
     Backend, DeviceCapabilities, DeviceError, DeviceReading, Fault, FaultCause, HapticDevice,
     OperatingState,
 };
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// Settings of the state machine.
 #[derive(Clone, Copy, Debug, PartialEq)]

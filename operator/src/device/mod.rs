@@ -10,7 +10,7 @@
 //! - [`Backend`] — the small interface a driver implements (read, write a force, switch forces
 //!   on/off). [`ManagedDevice`] wraps any backend and owns the state machine and the **enable
 //!   ramp**, so every backend behaves the same way.
-//! - Backends: [`scripted`] (a [`mmt::trajectory::Trajectory`], the simulated twin),
+//! - Backends: [`scripted`] (a [`sim::trajectory::Trajectory`], the simulated twin),
 //!   [`replay`] (a recorded CSV), [`spacemouse`] (HID, input only), [`omega`] (Force Dimension SDK
 //!   loaded at run time).
 //! - [`DeviceSpec`] / [`open_device`] — the `--device` value, parsed and opened.
@@ -36,7 +36,7 @@ use serde::Serialize;
 pub use managed::{ForceRecord, ManagedConfig, ManagedDevice};
 pub use select::{DeviceSpec, OpenOptions, open_device, scripted_trajectory};
 
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// What a device can do. Each backend declares one; the safety layer reads its limits.
 /// Field meanings follow CHAI3D's `cHapticDeviceInfo`.

@@ -18,10 +18,10 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use mmt::trajectory::{Trajectory, TrajectorySample};
+use sim::trajectory::{Trajectory, TrajectorySample};
 
 use crate::device::DeviceReading;
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// Header without velocity columns.
 pub const HEADER_POSITION: &str = "t_s,x,y,z";

@@ -6,10 +6,10 @@
 
 use std::time::Duration;
 
-use mmt::trajectory::Trajectory;
+use sim::trajectory::Trajectory;
 
 use super::{Backend, DeviceCapabilities, DeviceError, DeviceReading};
-use crate::vec3::Vec3;
+use mmt::vec3::Vec3;
 
 /// A device whose handle follows a trajectory.
 pub struct ScriptedBackend {
@@ -58,7 +58,7 @@ impl Backend for ScriptedBackend {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mmt::trajectory::Hold;
+    use sim::trajectory::Hold;
 
     #[test]
     fn follows_the_trajectory_and_declares_no_force_output() {

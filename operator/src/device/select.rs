@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::str::FromStr;
 
-use mmt::trajectory::{NAMES, Trajectory, by_name};
+use sim::trajectory::{NAMES, Trajectory, by_name};
 
 use super::omega::{OmegaBackend, OmegaConfig};
 use super::replay::ReplayTrajectory;

@@ -1,5 +1,5 @@
 //! The report of a networked run: the same figures as `mmt experiment` (computed by
-//! `mmt::experiment::analyse` from a [`Series`] built out of what the operator recorded), plus
+//! `metrics::analyse` from a [`Series`] built out of what the operator recorded), plus
 //! what only a real link has — `measured_delay_ms` by cross-correlation ([`delay`]), the haptic
 //! loop's timing, the link's counters and latency, the safety layer's trips.
 //!
@@ -15,23 +15,23 @@ pub mod delay;
 
 use std::fmt::Write as _;
 
-use mmt::experiment::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
-use mmt::node::gated_from_wire;
-use mmt::node::operator::OperatorOutput;
+use metrics::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
 use mmt::render::RendererStats;
-use mmt::scene::Scene;
+use node::gated_from_wire;
+use node::operator::OperatorOutput;
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
 use rt::{Summary, TimingReport};
 use serde::Serialize;
+use sim::scene::Scene;
 use transport::LinkReport;
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
 use crate::helper::Recording;
 use crate::safety::SafetyStats;
-use crate::vec3;
+use mmt::vec3;
 
 pub use delay::{DelayEstimate, LagRange};
 
@@ -323,7 +323,7 @@ fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<Delay
 
 /// The stdout table: `mmt experiment`'s, then the networked figures.
 pub fn table(r: &NetworkedReport) -> String {
-    let mut out = mmt::report::experiment::table(&r.experiment);
+    let mut out = metrics::table(&r.experiment);
     let _ = write_extras(&mut out, r);
     out
 }
@@ -510,10 +510,10 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
 pub fn files(
     r: &NetworkedReport,
     s: &Series,
-) -> Result<Vec<(String, Vec<u8>)>, mmt::report::plot::PlotError> {
-    let mut files = mmt::report::experiment::files(&r.experiment, s)?;
-    let json = serde_json::to_string_pretty(r)
-        .map_err(|e| mmt::report::plot::PlotError::Draw(e.to_string()))?;
+) -> Result<Vec<(String, Vec<u8>)>, lab::plot::PlotError> {
+    let mut files = lab::report::files(&r.experiment, s)?;
+    let json =
+        serde_json::to_string_pretty(r).map_err(|e| lab::plot::PlotError::Draw(e.to_string()))?;
     for (name, bytes) in &mut files {
         if name == "report.json" {
             *bytes = json.clone().into_bytes();

@@ -53,7 +53,7 @@ pub use stats::{Edge, SafetyStats, TripCount};
 pub use watchdog::{Model, SoftWatchdog, WatchdogConfig};
 
 use crate::device::{DeviceCapabilities, Workspace};
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// Safety settings. The device's limits come from its [`DeviceCapabilities`].
 #[derive(Clone, Copy, Debug, PartialEq)]

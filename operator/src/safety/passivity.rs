@@ -28,7 +28,7 @@
 use serde::Serialize;
 
 use super::stats::{Edge, TripCount};
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// A displacement per tick beyond this is a sensor glitch or a re-homing, not motion [m]: the
 /// energy of that interval is not counted (10 m/s at 1 kHz).

@@ -10,7 +10,7 @@
 //!
 //! Orientation is not mapped (the layer is translation only).
 
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// A validated position scale: finite and > 0 (commanded metres per device metre).
 #[derive(Clone, Copy, Debug, PartialEq)]

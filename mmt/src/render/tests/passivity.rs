@@ -8,7 +8,7 @@
 //! tests assert: a set rendered as a pure damper would pass trivially.
 
 use super::*;
-use crate::analysis::transfer::settle_time_s;
+use crate::render::transfer::settle_time_s;
 
 /// 0.1–400 Hz.
 const FREQUENCIES_HZ: [f64; 8] = [0.1, 0.5, 2.0, 10.0, 50.0, 150.0, 300.0, 400.0];

@@ -1,7 +1,7 @@
 //! Where SDIRK2's one-step-per-tick frequency response is within 1e-3 of the exact `|F/X|`.
 
 use super::*;
-use crate::analysis::transfer::accuracy_scope;
+use crate::render::transfer::accuracy_scope;
 
 /// Steady-state discrete response `F/X` of `method` at `omega`, exactly: the stepper is linear
 /// (no friction), so `z_{n+1} = Φ z_n + Γ₀ u_n + Γ₁ u_{n+1}` is read off by stepping unit vectors,

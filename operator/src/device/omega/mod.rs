@@ -34,7 +34,7 @@ use std::time::Duration;
 
 use self::sdk::Dhd;
 use super::{Backend, DeviceCapabilities, DeviceError, DeviceReading};
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// `DHD_DEVICE_OMEGA3` … `DHD_DEVICE_OMEGA7_LEFT` (dhdc.h).
 const OMEGA_FAMILY: std::ops::RangeInclusive<i32> = 33..=37;

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use self::report::{Report, known_device, normalise, parse_report};
 use super::{Backend, DeviceCapabilities, DeviceError, DeviceReading, Workspace};
-use crate::vec3::{self, Vec3};
+use mmt::vec3::{self, Vec3};
 
 /// SpaceMouse settings.
 #[derive(Clone, Copy, Debug, PartialEq)]

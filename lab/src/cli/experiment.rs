@@ -1,0 +1,134 @@
+//! `mmt experiment`: the thesis's experiments in-process.
+
+use crate::experiment::{ExperimentConfig, Kind, run};
+use anyhow::{Context, Result};
+use clap::Args;
+use sim::scene::Scene;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Reproduce thesis experiments 1–3 in-process (deterministic, faster than real time).
+#[derive(Args, Debug)]
+pub struct ExperimentArgs {
+    /// exp1 (no delay), exp2 (estimator, Franka-like sensors), exp3 (400 ms one-way delay).
+    name: String,
+    /// Scene file (TOML); default: the built-in exp-1 scene.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// One-way delay each way [ms] (default: 0, or 400 for exp3).
+    #[arg(long)]
+    delay_ms: Option<f64>,
+    /// Simulated time [s].
+    #[arg(long, default_value_t = 60.0)]
+    seconds: f64,
+    /// Seed of all noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output directory for report.json, series.csv and plots.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Scripted trajectory (exp1, exp2, chirp, steps, probe, hold).
+    #[arg(long)]
+    trajectory: Option<String>,
+    /// Detect contact from the telerobot's state only (the thesis's way).
+    #[arg(long)]
+    remote_contact: bool,
+    /// Disable state sync.
+    #[arg(long)]
+    no_sync: bool,
+    /// Uniform jitter each way [ms] (order kept).
+    #[arg(long, default_value_t = 0.0)]
+    jitter_ms: f64,
+    /// Random loss each way [%].
+    #[arg(long, default_value_t = 0.0)]
+    loss_pct: f64,
+    /// Duplicated datagrams each way [%].
+    #[arg(long, default_value_t = 0.0)]
+    duplicate_pct: f64,
+    /// Datagrams sent ahead of their turn each way [%] (needs a delay).
+    #[arg(long, default_value_t = 0.0)]
+    reorder_pct: f64,
+}
+
+pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
+    let kind = Kind::parse(&args.name)?;
+    let scene = match &args.scene {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            Scene::from_toml(&text, &path.display().to_string())?
+        }
+        None => Scene::exp1(),
+    };
+    let mut config = ExperimentConfig::new(kind, scene);
+    if let Some(d) = args.delay_ms {
+        config.delay_ms = d;
+    }
+    config.seconds = args.seconds;
+    config.seed = args.seed;
+    if let Some(t) = args.trajectory {
+        config.trajectory = t;
+    }
+    config.operator.local_contact = !args.remote_contact;
+    config.operator.state_sync = !args.no_sync;
+    config.jitter_ms = args.jitter_ms;
+    config.loss = args.loss_pct / 100.0;
+    config.duplicate = args.duplicate_pct / 100.0;
+    config.reorder = args.reorder_pct / 100.0;
+    // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
+    let bar = (config.seconds >= 100.0 && !args.json).then(|| {
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% eta {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
+        bar
+    });
+    let started = Instant::now();
+    let (series, report) = run(&config, &mut |f| {
+        if let Some(bar) = &bar {
+            bar.set_position((f * 1000.0) as u64);
+        }
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let timing = serde_json::json!({
+        "sim_seconds": report.sim_seconds,
+        "wall_seconds": wall,
+        "real_time_factor": report.sim_seconds / wall,
+    });
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (name, bytes) in crate::report::files(&report, &series)? {
+            let path = dir.join(name);
+            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        }
+        // Wall-clock time lives apart so report.json is bit-for-bit reproducible.
+        std::fs::write(
+            dir.join("timing.json"),
+            serde_json::to_string_pretty(&timing)?,
+        )?;
+    }
+    if args.json {
+        let mut v = serde_json::to_value(&report)?;
+        v["wall_seconds"] = timing["wall_seconds"].clone();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print!("{}", metrics::table(&report));
+        println!(
+            "{:.0} s simulated in {wall:.2} s ({:.0}× real time){}",
+            report.sim_seconds,
+            report.sim_seconds / wall,
+            args.out
+                .as_ref()
+                .map_or(String::new(), |d| format!("; files in {}", d.display()))
+        );
+    }
+    Ok(())
+}

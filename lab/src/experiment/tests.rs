@@ -1,0 +1,286 @@
+//! The experiments at short durations with their figures asserted (accuracy, never timing).
+
+use super::*;
+use mmt::model::backsolve::Confidence;
+use mmt::vec3;
+
+fn run_with(
+    kind: Kind,
+    seconds: f64,
+    adjust: impl FnOnce(&mut ExperimentConfig),
+) -> (Series, ExperimentReport) {
+    let mut config = ExperimentConfig::new(kind, Scene::exp1());
+    config.seconds = seconds;
+    adjust(&mut config);
+    run(&config, &mut |_| {}).unwrap()
+}
+
+fn assert_bands(r: &ExperimentReport, max_pct: f64) {
+    for b in &r.bands {
+        let pct = b.rms_error_pct.expect("the band has rendered force");
+        assert!(
+            pct <= max_pct,
+            "band {}–{} Hz: {pct:.2} %",
+            b.lo_hz,
+            b.hi_hz,
+        );
+    }
+}
+
+/// Issue 4: exp 1 — RMS error after stable ≤ 5 % of the measured RMS, each band ≤ 10 %.
+#[test]
+fn exp1_meets_its_figures() {
+    let (_, r) = run_with(Kind::Exp1, 20.0, |_| {});
+    let after = r.rms_error_pct_after_stable.unwrap();
+    assert!(after <= 5.0, "after stable {after:.2} %");
+    assert_bands(&r, 10.0);
+    // The error against the measured force holds the sensor's noise and bias; against the
+    // truth only the model's own error is left.
+    let vs_truth = r.rms_error_pct_after_stable_vs_true_force.unwrap();
+    assert!(
+        vs_truth < after && vs_truth <= 2.5,
+        "against the truth {vs_truth:.2} %, measured {after:.2} %"
+    );
+    assert_eq!(
+        r.contact_switch_latency_ms.switches, 5,
+        "three episodes: five switches"
+    );
+}
+
+/// Issue 4: exp 3 (400 ms each way) — the same accuracy, contact switched within 2 ms with
+/// operator-side detection, a round trip with the remote state only (as in the thesis).
+#[test]
+fn exp3_meets_its_figures() {
+    let (_, r) = run_with(Kind::Exp3, 20.0, |_| {});
+    assert_eq!(r.delay_ms, 400.0);
+    let after = r.rms_error_pct_after_stable.unwrap();
+    assert!(after <= 5.0, "after stable {after:.2} %");
+    assert_bands(&r, 10.0);
+    let l = r.contact_switch_latency_ms;
+    assert!(
+        l.local.unwrap() <= 2.0 && l.local_max.unwrap() <= 3.0,
+        "{l:?}"
+    );
+    let remote = l.remote_only.unwrap();
+    assert!(
+        (remote - 800.0).abs() <= 20.0,
+        "remote-only {remote} ms, expected about the 800 ms round trip"
+    );
+    // Switching from the delayed remote state costs accuracy: the thesis's failure mode.
+    assert!(r.rms_error_pct_remote_contact.unwrap() > 4.0 * after);
+}
+
+/// Issue 4: exp 2 — reconstruction error ≤ 2 %, time to stable ≤ 2 s.
+#[test]
+fn exp2_meets_its_figures() {
+    let (_, r) = run_with(Kind::Exp2, 15.0, |_| {});
+    let recon = r.reconstruction_error_pct.unwrap();
+    assert!(recon <= 2.0, "reconstruction {recon:.2} %");
+    let tts = r.time_to_stable_s.unwrap();
+    assert!(tts <= 2.0, "time to stable {tts:.2} s");
+    // The final sets are well conditioned, and none of the confirmed ones was low-confidence.
+    assert!(!r.parameters.is_empty());
+    for p in &r.parameters {
+        assert_eq!(p.confidence, Confidence::Identified, "{}", p.axes);
+        assert!(p.confirmed_updates.unwrap() > 0, "{}", p.axes);
+        assert_eq!(p.low_confidence_updates, Some(0), "{}", p.axes);
+    }
+}
+
+/// A low-confidence set (k1 ≫ k2: condition ≈ 26) is reported as such in the JSON and the table,
+/// next to the unchanged keys.
+#[test]
+fn low_confidence_parameters_are_reported() {
+    use mmt::model::gates::{GateConfig, gate};
+    use mmt::model::{Physical, Structure};
+    let heavy_ground = Physical::new(0.5, 5000.0, 5.0, 300.0, 10.0, 0.3);
+    let structure = Structure::SlidingMass {
+        ground_spring: true,
+        friction: true,
+    };
+    let g = gate(
+        structure,
+        &heavy_ground.theta().unwrap(),
+        None,
+        &GateConfig::default(),
+    )
+    .unwrap();
+    let report = parameter_report(&Scene::exp1(), [None, Some(&g)]);
+    assert_eq!(report.len(), 1);
+    let Confidence::Low { condition } = report[0].confidence else {
+        panic!("{:?}", report[0].confidence)
+    };
+    assert!(condition > 15.0 && condition == report[0].condition);
+    let json = serde_json::to_value(&report[0]).unwrap();
+    assert_eq!(json["axes"], "tangential");
+    assert!(json["values"].is_array());
+    assert_eq!(json["confidence"]["kind"], "low");
+    assert!(json.get("low_confidence_updates").is_none());
+    // The in-process run fills in the counts and the table says it.
+    let (_, mut r) = run_with(Kind::Exp1, 3.0, |_| {});
+    let mut low = report[0].clone();
+    low.low_confidence_updates = Some(4);
+    low.confirmed_updates = Some(9);
+    r.parameters = vec![low];
+    let table = metrics::table(&r);
+    assert!(
+        table.contains("back-solve confidence, tangential: LOW")
+            && table.contains("4 of 9 confirmed sets low-confidence"),
+        "{table}"
+    );
+}
+
+/// The wall identifies and renders two parameters per axis, streams no moving cloud, and its
+/// report says what it left out.
+#[test]
+fn the_wall_uses_two_parameters_per_axis() {
+    let mut config = ExperimentConfig::new(Kind::Exp1, Scene::wall());
+    config.seconds = 15.0;
+    config.trajectory = "probe".into();
+    let (_, r) = run(&config, &mut |_| {}).unwrap();
+    assert_eq!(r.parameters.len(), 2, "{:?}", r.parameters);
+    for p in &r.parameters {
+        let names: Vec<&str> = p.values.iter().map(|v| v.0.as_str()).collect();
+        assert_eq!(names, ["k", "b"], "{} axes", p.axes);
+        // The stiffness is well excited; the damping of a 2 mm press much less.
+        let (k, b) = (&p.values[0], &p.values[1]);
+        assert!(
+            (k.2 / k.1 - 1.0).abs() < 0.1,
+            "{} k: {} vs {}",
+            p.axes,
+            k.2,
+            k.1
+        );
+        assert!(
+            b.2 > 0.5 * b.1 && b.2 < 2.0 * b.1,
+            "{} b: {} vs {}",
+            p.axes,
+            b.2,
+            b.1
+        );
+    }
+    assert_eq!(r.operator_stats.clouds, 1, "a static cloud is sent once");
+    for term in [
+        "tangential: mass",
+        "tangential: coulomb friction",
+        "moving cloud (the cloud is sent once)",
+    ] {
+        assert!(
+            r.left_out.iter().any(|l| l == term),
+            "{term} not in {:?}",
+            r.left_out
+        );
+    }
+    assert!(r.rms_error_pct_after_stable.unwrap() <= 10.0);
+}
+
+/// Same seed, same report, bit for bit; another seed, another report.
+#[test]
+fn same_seed_same_report_bits() {
+    let json = |seed: u64| {
+        let (_, r) = run_with(Kind::Exp1, 6.0, |c| c.seed = seed);
+        serde_json::to_string(&r).unwrap()
+    };
+    assert_eq!(json(7), json(7));
+    assert_ne!(json(7), json(8));
+}
+
+/// Lost, duplicated and reordered datagrams (5 % each, both ways, 50 ms delay) change nothing
+/// unsafe: every force finite and within the physical range, and the model still renders well,
+/// whatever the seed (an early reordered command once held the playout lag down for good).
+#[test]
+fn lost_duplicated_and_reordered_messages_change_nothing_unsafe() {
+    for seed in 1..=3 {
+        let (series, r) = run_with(Kind::Exp1, 15.0, |c| {
+            c.delay_ms = 50.0;
+            c.loss = 0.05;
+            c.duplicate = 0.05;
+            c.reorder = 0.05;
+            c.seed = seed;
+        });
+        let max_measured = series
+            .measured
+            .iter()
+            .flatten()
+            .map(|f| vec3::norm(*f))
+            .fold(0.0, f64::max);
+        for f in series.rendered.iter().chain(&series.rendered_remote) {
+            assert!(vec3::is_finite(*f));
+            assert!(
+                vec3::norm(*f) <= 2.0 * max_measured,
+                "seed {seed}: {f:?} against at most {max_measured} N measured"
+            );
+        }
+        let after = r
+            .rms_error_pct_after_stable
+            .expect("parameters pass the gates");
+        assert!(after <= 5.0, "seed {seed}: after stable {after:.2} %");
+        let t = &r.telerobot_stats;
+        assert!(
+            t.stale_commands > 0,
+            "duplicated commands are dropped, not executed twice"
+        );
+        assert!(
+            t.stale_commands + t.skipped_commands <= t.commands / 10,
+            "seed {seed}: {} stale and {} skipped of {} commands",
+            t.stale_commands,
+            t.skipped_commands,
+            t.commands
+        );
+    }
+}
+
+/// Jitter that keeps packet order bunches the commands: the playout plays them in order
+/// instead of skipping to the newest (which cost 11 % error at 5 ms jitter).
+#[test]
+fn jittered_commands_are_played_in_order() {
+    let (_, r) = run_with(Kind::Exp1, 15.0, |c| {
+        c.delay_ms = 50.0;
+        c.jitter_ms = 5.0;
+    });
+    let after = r
+        .rms_error_pct_after_stable
+        .expect("parameters pass the gates");
+    assert!(after <= 5.0, "after stable {after:.2} %");
+    assert_bands(&r, 10.0);
+    let t = &r.telerobot_stats;
+    assert!(
+        t.skipped_commands <= t.commands / 10,
+        "{} of {} commands skipped",
+        t.skipped_commands,
+        t.commands
+    );
+}
+
+#[test]
+fn bad_settings_name_the_field() {
+    let mut config = ExperimentConfig::new(Kind::Exp1, Scene::exp1());
+    config.seconds = 0.0;
+    let e = run(&config, &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("seconds = 0"), "{e}");
+    assert!(
+        Kind::parse("exp4")
+            .unwrap_err()
+            .to_string()
+            .contains("exp4")
+    );
+    let mut config = ExperimentConfig::new(Kind::Exp1, Scene::exp1());
+    config.trajectory = "nope".into();
+    assert!(run(&config, &mut |_| {}).is_err());
+}
+
+/// A run too short for the parameters to pass the gates renders nothing: its error figures are
+/// absent (`null`), not 0 %.
+#[test]
+fn a_run_without_rendering_reports_no_error_figures() {
+    let (series, r) = run_with(Kind::Exp1, 1.0, |_| {});
+    assert!(series.rendering.iter().all(|r| !r));
+    assert_eq!(r.rms_error_pct_after_stable, None);
+    assert!(
+        r.bands.iter().all(|b| b.rms_error_pct.is_none()),
+        "{:?}",
+        r.bands
+    );
+    let json = serde_json::to_value(&r).unwrap();
+    assert!(json["bands"][0]["rms_error_pct"].is_null());
+}

@@ -1,0 +1,44 @@
+//! `mmt`: analysis commands over the MMT core. Thin: parse, call the library, print.
+
+use lab::cli;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "mmt",
+    about = "Model-mediated teleoperation: analysis commands"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Time the kd-tree build and the proxy step on a noisy plane (and the same steps by brute
+    /// force).
+    ContactBench(cli::contact_bench::Args),
+    /// Reproduce thesis experiments 1–3 in-process (exp1, exp2, exp3).
+    Experiment(cli::experiment::ExperimentArgs),
+    /// Renderer frequency response against the exact |F/X|.
+    Transfer(cli::transfer::TransferArgs),
+    /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
+    Estimate(cli::estimate::EstimateArgs),
+    /// The renderer on extreme and garbage inputs.
+    Stress(cli::stress::StressArgs),
+    /// Error against run time per integrator and step size, on typical, stiff and extreme sets.
+    WorkPrecision(cli::work_precision::WorkPrecisionArgs),
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::ContactBench(args) => cli::contact_bench::run(&args),
+        Command::Experiment(args) => cli::experiment::run_cmd(args),
+        Command::Transfer(args) => cli::transfer::run(args),
+        Command::Estimate(args) => cli::estimate::run(args),
+        Command::Stress(args) => cli::stress::run(args),
+        Command::WorkPrecision(args) => cli::work_precision::run(args),
+    }
+}

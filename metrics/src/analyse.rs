@@ -1,0 +1,582 @@
+//! What an experiment records and what the report computes from it.
+
+use crate::spectrum::bands_rms;
+use mmt::model::backsolve::{Confidence, Params};
+use mmt::model::gates::Gated;
+use mmt::vec3;
+use node::operator::{OperatorOutput, OperatorStats};
+use node::telerobot::TelerobotStats;
+use serde::Serialize;
+use sim::scene::Scene;
+
+/// The time series of a run, indexed by operator tick (= command sample time / period).
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    /// Tick period [ns].
+    pub period_ns: i64,
+    /// The scene's second tangent: the thesis's "y" axis, for plots.
+    pub axis: [f64; 3],
+    /// The scene's surface normal, for plots.
+    pub normal: [f64; 3],
+    /// Device position [m].
+    pub position: Vec<[f64; 3]>,
+    /// Force rendered by the operator node [N].
+    pub rendered: Vec<[f64; 3]>,
+    /// Force rendered by the shadow node (remote contact only) [N].
+    pub rendered_remote: Vec<[f64; 3]>,
+    /// Operator in contact (local detection).
+    pub contact_local: Vec<bool>,
+    /// Shadow node in contact (the telerobot's state).
+    pub contact_remote: Vec<bool>,
+    /// The operator renders a model.
+    pub rendering: Vec<bool>,
+    /// Operator's contact deflection and mass velocity per tangent (sliding mass only).
+    pub operator_state: Vec<[Option<(f64, f64)>; 2]>,
+    /// Force on the tool the telerobot's sensor measured while executing the command of this
+    /// tick [N]: noise and bias included, as on a real robot (the reference of every error).
+    pub measured: Vec<Option<[f64; 3]>>,
+    /// The true force of the same tick [N], where a simulator knows it (else all `None`).
+    pub true_force: Vec<Option<[f64; 3]>>,
+    /// True contact while executing the command of this tick.
+    pub contact_true: Vec<Option<bool>>,
+    /// True contact deflection and mass velocity per tangent, same alignment.
+    pub true_state: Vec<Option<[(f64, f64); 2]>>,
+    /// Telerobot's parameters pass every gate (by telerobot tick).
+    pub stable: Vec<bool>,
+    /// Σ y² and Σ (y − ψᵀθ̂)² of the tangential estimator while confident.
+    pub reconstruction: (f64, f64),
+}
+
+impl Series {
+    /// An empty series for `n` ticks of `period_ns`; `axis` is the tangent plotted as the
+    /// thesis's "y".
+    pub fn with_capacity(n: usize, axis: [f64; 3], normal: [f64; 3], period_ns: i64) -> Self {
+        Series {
+            period_ns,
+            axis,
+            normal,
+            position: Vec::with_capacity(n),
+            rendered: Vec::with_capacity(n),
+            rendered_remote: Vec::with_capacity(n),
+            contact_local: Vec::with_capacity(n),
+            contact_remote: Vec::with_capacity(n),
+            rendering: Vec::with_capacity(n),
+            operator_state: Vec::with_capacity(n),
+            measured: vec![None; n],
+            true_force: vec![None; n],
+            contact_true: vec![None; n],
+            true_state: vec![None; n],
+            stable: Vec::with_capacity(n),
+            reconstruction: (0.0, 0.0),
+        }
+    }
+
+    /// Records an operator tick (and the shadow node's, when there is one: pass the same output
+    /// twice otherwise).
+    pub fn push_operator(
+        &mut self,
+        position: [f64; 3],
+        out: &OperatorOutput,
+        remote: &OperatorOutput,
+    ) {
+        self.position.push(position);
+        self.rendered.push(out.force_n);
+        self.rendered_remote.push(remote.force_n);
+        self.contact_local.push(out.in_contact);
+        self.contact_remote.push(remote.in_contact);
+        self.rendering.push(out.rendering);
+    }
+
+    /// Records what the telerobot measured while executing the command sampled at
+    /// `command_time_ns` (the first report for a command counts), its stability and the
+    /// reconstruction sums of its tick, and the operator's tangential state of the same tick.
+    #[allow(clippy::too_many_arguments)]
+    pub fn push_telerobot(
+        &mut self,
+        command_time_ns: i64,
+        force: [f64; 3],
+        in_contact: bool,
+        stable: bool,
+        reconstruction: Option<(f64, f64)>,
+        true_state: [(f64, f64); 2],
+        operator_state: [Option<(f64, f64)>; 2],
+    ) {
+        self.stable.push(stable);
+        self.operator_state.push(operator_state);
+        if let Some((y2, e2)) = reconstruction {
+            self.reconstruction.0 += y2;
+            self.reconstruction.1 += e2;
+        }
+        let idx = command_time_ns / self.period_ns;
+        if command_time_ns < 0 || idx as usize >= self.measured.len() {
+            return;
+        }
+        let i = idx as usize;
+        if self.measured[i].is_none() {
+            self.measured[i] = Some(force);
+            self.contact_true[i] = Some(in_contact);
+            self.true_state[i] = Some(true_state);
+        }
+    }
+
+    /// Records the true force while executing the command sampled at `command_time_ns` (the
+    /// first for a command counts): simulation only.
+    pub fn push_true_force(&mut self, command_time_ns: i64, force: [f64; 3]) {
+        let idx = command_time_ns / self.period_ns;
+        if command_time_ns < 0 || idx as usize >= self.true_force.len() {
+            return;
+        }
+        self.true_force[idx as usize].get_or_insert(force);
+    }
+
+    /// Tick period [s].
+    pub fn dt_s(&self) -> f64 {
+        self.period_ns as f64 * 1e-9
+    }
+
+    /// Number of operator ticks.
+    pub fn len(&self) -> usize {
+        self.rendered.len()
+    }
+
+    /// No ticks.
+    pub fn is_empty(&self) -> bool {
+        self.rendered.is_empty()
+    }
+}
+
+/// One frequency band of the error.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Band {
+    /// Lower edge [Hz].
+    pub lo_hz: f64,
+    /// Upper edge [Hz].
+    pub hi_hz: f64,
+    /// RMS error in the band, % of the RMS measured force in the band; `None` (JSON `null`)
+    /// when nothing was rendered after the parameters first passed the gates.
+    pub rms_error_pct: Option<f64>,
+}
+
+/// Delay between a true contact change and the rendered one, on the command time axis [ms].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ContactLatency {
+    /// Operator-side detection on the delayed cloud: mean |latency|.
+    pub local: Option<f64>,
+    /// The telerobot's contact state only (the thesis): mean latency.
+    pub remote_only: Option<f64>,
+    /// Worst |latency| of local detection.
+    pub local_max: Option<f64>,
+    /// True contact changes counted.
+    pub switches: usize,
+}
+
+/// An error value over a window.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Window {
+    /// Window start [s].
+    pub t_s: f64,
+    /// RMS error, % of the RMS measured force; `None` out of contact.
+    pub rms_error_pct: Option<f64>,
+}
+
+/// Estimated against true parameters.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ParameterReport {
+    /// Axis group.
+    pub axes: &'static str,
+    /// `(name, true, estimated, error %)`.
+    pub values: Vec<(String, f64, f64, f64)>,
+    /// The back-solve's confidence in the final set: `{"kind":"low","condition":…}` when the
+    /// parameters are nearly unobservable (e.g. k1 ≫ k2) and their errors amplified.
+    pub confidence: Confidence,
+    /// Condition number of `∂ log θ/∂ log φ` at the final set.
+    pub condition: f64,
+    /// Confirmed sets of this group whose back-solve reported low confidence, and all confirmed
+    /// sets, when the estimator's counters are at hand (the in-process experiment).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub low_confidence_updates: Option<u64>,
+    /// All confirmed sets of this group (with `low_confidence_updates`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub confirmed_updates: Option<u64>,
+}
+
+/// The thesis's figures, for the same table.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ThesisFigures {
+    /// Exp 1/3 error below 0.3 Hz [%] ("up to 30 %").
+    pub rms_error_low_freq_pct: f64,
+    /// Exp 1/3 error above 0.3 Hz [%] ("up to 100 %").
+    pub rms_error_high_freq_pct: f64,
+    /// Exp 2 reconstruction error [%].
+    pub reconstruction_error_pct: f64,
+    /// Exp 2 time to stable parameters [s].
+    pub time_to_stable_s: f64,
+    /// Exp 3 contact-switch latency: one round trip [ms].
+    pub contact_switch_latency_ms: f64,
+}
+
+/// The report of one run. Everything here is a function of the configuration and the seed:
+/// the same seed gives the same bytes (wall-clock time is reported separately by the caller).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ExperimentReport {
+    /// Experiment name.
+    pub experiment: String,
+    /// Scene name.
+    pub scene: String,
+    /// Trajectory name.
+    pub trajectory: String,
+    /// Seed.
+    pub seed: u64,
+    /// One-way delay [ms].
+    pub delay_ms: f64,
+    /// RMS error of the rendered force from the first contact to the end, % of the RMS measured
+    /// force (force vectors, world frame).
+    pub rms_error_pct: Option<f64>,
+    /// The same from the time the first parameters reach the operator.
+    pub rms_error_pct_after_stable: Option<f64>,
+    /// The same on the scene's second tangent only (the thesis's y axis).
+    pub tangential_rms_error_pct_after_stable: Option<f64>,
+    /// After stable, against the true force instead of the measured one (simulation only): the
+    /// error of the model without the sensor's noise and bias.
+    pub rms_error_pct_after_stable_vs_true_force: Option<f64>,
+    /// After stable, per band.
+    pub bands: Vec<Band>,
+    /// The shadow node's error after stable: contact from the telerobot's state only.
+    pub rms_error_pct_remote_contact: Option<f64>,
+    /// 1 s windows.
+    pub error_over_time: Vec<Window>,
+    /// From the first contact until the parameters pass every gate and keep passing [s].
+    pub time_to_stable_s: Option<f64>,
+    /// From the first contact until the operator renders a model [s].
+    pub render_start_s: Option<f64>,
+    /// The tangential estimator's a-priori reconstruction error while confident [%].
+    pub reconstruction_error_pct: Option<f64>,
+    /// Contact-switch latency.
+    pub contact_switch_latency_ms: ContactLatency,
+    /// Operator contact deflection vs truth: RMS difference in contact [m] (sliding mass).
+    pub deflection_rms_error_m: Option<f64>,
+    /// Parameters.
+    pub parameters: Vec<ParameterReport>,
+    /// Terms the scene's model leaves out.
+    pub left_out: Vec<String>,
+    /// Simulated time [s].
+    pub sim_seconds: f64,
+    /// The thesis's figures.
+    pub thesis: ThesisFigures,
+    /// Operator node counters.
+    pub operator_stats: OperatorStats,
+    /// Shadow node counters.
+    pub shadow_stats: OperatorStats,
+    /// Telerobot node counters.
+    pub telerobot_stats: TelerobotStats,
+}
+
+/// The bands of the report [Hz].
+pub const BANDS: [(f64, f64); 3] = [(0.0, 0.3), (0.3, 1.0), (1.0, 4.0)];
+
+/// What a run was, for its report.
+#[derive(Clone, Debug)]
+pub struct RunInfo {
+    /// Experiment name (`exp1`, …, or `networked`).
+    pub experiment: String,
+    /// Scene name.
+    pub scene: String,
+    /// The physical terms the scene's model leaves out ([`Scene::left_out`]).
+    pub left_out: Vec<String>,
+    /// Trajectory name.
+    pub trajectory: String,
+    /// Seed.
+    pub seed: u64,
+    /// One-way delay [ms].
+    pub delay_ms: f64,
+}
+
+/// What the nodes know, for the report.
+#[derive(Clone, Debug, Default)]
+pub struct NodeInfo {
+    /// Estimated against true parameters.
+    pub parameters: Vec<ParameterReport>,
+    /// Operator node counters.
+    pub operator: OperatorStats,
+    /// Shadow node counters.
+    pub shadow: OperatorStats,
+    /// Telerobot node counters.
+    pub telerobot: TelerobotStats,
+}
+
+/// Computes the report of a run.
+pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport {
+    let dt = s.dt_s();
+    let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
+    let render_start = s.rendering.iter().position(|r| *r);
+    let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
+    let rms_pct_vs = |reference: &[Option<[f64; 3]>],
+                      from: usize,
+                      rendered: &[[f64; 3]],
+                      proj: Option<[f64; 3]>|
+     -> Option<f64> {
+        let (mut e2, mut m2) = (0.0, 0.0);
+        for (m, r) in reference.iter().zip(rendered).skip(from) {
+            let Some(m) = *m else { continue };
+            let e = vec3::sub(*r, m);
+            match proj {
+                Some(a) => {
+                    e2 += vec3::dot(e, a).powi(2);
+                    m2 += vec3::dot(m, a).powi(2);
+                }
+                None => {
+                    e2 += vec3::norm2(e);
+                    m2 += vec3::norm2(m);
+                }
+            }
+        }
+        (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
+    };
+    let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| {
+        rms_pct_vs(&s.measured, from, rendered, proj)
+    };
+    let after = render_start.unwrap_or(s.len());
+    let (mut e2, mut m2) = ([0.0; BANDS.len()], [0.0; BANDS.len()]);
+    for c in 0..3 {
+        let err: Vec<f64> = (after..s.len())
+            .map(|i| s.rendered[i][c] - measured(i)[c])
+            .collect();
+        let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
+        let (be, bm) = (bands_rms(&err, dt, &BANDS), bands_rms(&meas, dt, &BANDS));
+        for b in 0..BANDS.len() {
+            e2[b] += be[b] * be[b];
+            m2[b] += bm[b] * bm[b];
+        }
+    }
+    let bands = BANDS
+        .iter()
+        .enumerate()
+        .map(|(b, &(lo, hi))| Band {
+            lo_hz: lo,
+            hi_hz: hi,
+            rms_error_pct: (m2[b] > 0.0).then(|| 100.0 * (e2[b] / m2[b]).sqrt()),
+        })
+        .collect();
+    let per_window = (1.0 / dt).round() as usize;
+    let error_over_time = (0..s.len())
+        .step_by(per_window)
+        .map(|start| {
+            let end = (start + per_window).min(s.len());
+            let (mut e2, mut m2, mut n) = (0.0, 0.0, 0);
+            for i in start..end {
+                if let Some(m) = s.measured[i] {
+                    e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
+                    m2 += vec3::norm2(m);
+                    n += 1;
+                }
+            }
+            let rms_m = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };
+            Window {
+                t_s: start as f64 * dt,
+                rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
+            }
+        })
+        .collect();
+    let stable_from = s.stable.iter().rposition(|st| !st).map_or(0, |i| i + 1);
+    let time_to_stable_s = match first_contact {
+        Some(fc) if stable_from < s.stable.len() => Some((stable_from.max(fc) - fc) as f64 * dt),
+        _ => None,
+    };
+    ExperimentReport {
+        experiment: info.experiment.clone(),
+        scene: info.scene.clone(),
+        trajectory: info.trajectory.clone(),
+        seed: info.seed,
+        delay_ms: info.delay_ms,
+        rms_error_pct: first_contact.and_then(|fc| rms_pct(fc, &s.rendered, None)),
+        rms_error_pct_after_stable: rms_pct(after, &s.rendered, None),
+        tangential_rms_error_pct_after_stable: rms_pct(after, &s.rendered, Some(s.axis)),
+        rms_error_pct_after_stable_vs_true_force: rms_pct_vs(
+            &s.true_force,
+            after,
+            &s.rendered,
+            None,
+        ),
+        bands,
+        rms_error_pct_remote_contact: rms_pct(after, &s.rendered_remote, None),
+        error_over_time,
+        time_to_stable_s,
+        render_start_s: match (first_contact, render_start) {
+            (Some(fc), Some(rs)) => Some(rs.saturating_sub(fc) as f64 * dt),
+            _ => None,
+        },
+        reconstruction_error_pct: (s.reconstruction.0 > 0.0)
+            .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
+        contact_switch_latency_ms: latency(s),
+        deflection_rms_error_m: deflection_error(s),
+        parameters: nodes.parameters,
+        left_out: info.left_out.clone(),
+        sim_seconds: s.len() as f64 * dt,
+        thesis: ThesisFigures {
+            rms_error_low_freq_pct: 30.0,
+            rms_error_high_freq_pct: 100.0,
+            reconstruction_error_pct: 5.0,
+            time_to_stable_s: 16.1,
+            contact_switch_latency_ms: 2.0 * info.delay_ms,
+        },
+        operator_stats: nodes.operator,
+        shadow_stats: nodes.shadow,
+        telerobot_stats: nodes.telerobot,
+    }
+}
+
+/// Transition times (tick index, new state) of a boolean series.
+fn transitions(v: impl Iterator<Item = Option<bool>>) -> Vec<(usize, bool)> {
+    let mut out = Vec::new();
+    let mut last: Option<bool> = None;
+    for (i, c) in v.enumerate() {
+        let Some(c) = c else { continue };
+        if last.is_some_and(|l| l != c) {
+            out.push((i, c));
+        }
+        last = Some(c);
+    }
+    out
+}
+
+fn latency(s: &Series) -> ContactLatency {
+    let dt_ms = s.dt_s() * 1e3;
+    let truth = transitions(s.contact_true.iter().copied());
+    let local = transitions(s.contact_local.iter().map(|c| Some(*c)));
+    let remote = transitions(s.contact_remote.iter().map(|c| Some(*c)));
+    // The nearest change of the same polarity within 3 s.
+    let match_each = |candidates: &[(usize, bool)]| -> Vec<f64> {
+        truth
+            .iter()
+            .filter_map(|&(t, state)| {
+                candidates
+                    .iter()
+                    .filter(|(_, c)| *c == state)
+                    .map(|&(i, _)| (i as f64 - t as f64) * dt_ms)
+                    .filter(|d| d.abs() <= 3000.0)
+                    .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+            })
+            .collect()
+    };
+    let l = match_each(&local);
+    let r = match_each(&remote);
+    let mean = |v: &[f64], abs: bool| {
+        (!v.is_empty()).then(|| {
+            v.iter()
+                .map(|x| if abs { x.abs() } else { *x })
+                .sum::<f64>()
+                / v.len() as f64
+        })
+    };
+    ContactLatency {
+        local: mean(&l, true),
+        remote_only: mean(&r, false),
+        local_max: l.iter().map(|x| x.abs()).reduce(f64::max),
+        switches: truth.len(),
+    }
+}
+
+fn deflection_error(s: &Series) -> Option<f64> {
+    let (mut e2, mut n) = (0.0, 0usize);
+    for (i, op) in s.operator_state.iter().enumerate() {
+        let (Some(Some(truth)), Some(Some(true))) = (s.true_state.get(i), s.contact_true.get(i))
+        else {
+            continue;
+        };
+        if !s.contact_local.get(i).copied().unwrap_or(false)
+            || !s.rendering.get(i).copied().unwrap_or(false)
+        {
+            continue;
+        }
+        for (axis, t) in op.iter().zip(truth) {
+            if let Some((d, _)) = axis {
+                e2 += (d - t.0).powi(2);
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (e2 / n as f64).sqrt())
+}
+
+/// Estimated against the scene's true parameters, for the sets given (normal, tangential).
+pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<ParameterReport> {
+    let env = scene.environment;
+    let rel = |est: f64, truth: f64| {
+        if truth != 0.0 {
+            100.0 * (est - truth) / truth
+        } else {
+            f64::NAN
+        }
+    };
+    let row = |name: &str, truth: f64, est: f64| (name.to_string(), truth, est, rel(est, truth));
+    let mut out = Vec::new();
+    for (axes, latest) in ["normal", "tangential"].into_iter().zip(sets) {
+        let Some(latest) = latest else { continue };
+        let values = match latest.params() {
+            Params::KelvinVoigt(kv) => vec![
+                row("k", env.k_contact_n_per_m, kv.k_n_per_m),
+                row("b", env.b_contact_ns_per_m, kv.b_ns_per_m),
+            ],
+            Params::SlidingMass(p) => vec![
+                row("m", env.mass_kg, p.mass_kg),
+                row("k1", env.k_ground_n_per_m, p.k_ground_n_per_m),
+                row("b1", env.b_ground_ns_per_m, p.b_ground_ns_per_m),
+                row("k2", env.k_contact_n_per_m, p.k_contact_n_per_m),
+                row("b2", env.b_contact_ns_per_m, p.b_contact_ns_per_m),
+                row("Fc", env.coulomb_friction_n, p.coulomb_n),
+            ],
+            Params::Free => vec![],
+        };
+        out.push(ParameterReport {
+            axes,
+            values,
+            confidence: latest.confidence(),
+            condition: latest.condition(),
+            low_confidence_updates: None,
+            confirmed_updates: None,
+        });
+    }
+    out
+}
+
+impl Series {
+    /// The series as CSV: one row per operator tick.
+    pub fn to_csv(&self) -> String {
+        use std::fmt::Write;
+        let mut out = String::with_capacity(self.len() * 200);
+        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering,true_x_n,true_y_n,true_z_n\n");
+        let b = |v: bool| if v { 1 } else { 0 };
+        for i in 0..self.len() {
+            let p = self.position[i];
+            let m = self.measured[i].map_or([f64::NAN; 3], |m| m);
+            let r = self.rendered[i];
+            let q = self.rendered_remote[i];
+            let t = self.true_force[i].map_or([f64::NAN; 3], |t| t);
+            let _ = writeln!(
+                out,
+                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{},{:.5},{:.5},{:.5}",
+                i as f64 * self.dt_s(),
+                p[0],
+                p[1],
+                p[2],
+                m[0],
+                m[1],
+                m[2],
+                r[0],
+                r[1],
+                r[2],
+                q[0],
+                q[1],
+                q[2],
+                self.contact_true[i].map_or(-1, b),
+                b(self.contact_local[i]),
+                b(self.contact_remote[i]),
+                b(self.rendering[i]),
+                t[0],
+                t[1],
+                t[2],
+            );
+        }
+        out
+    }
+}

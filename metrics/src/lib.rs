@@ -1,0 +1,21 @@
+//! # metrics — a run's figures, computed the same way in-process and over the network
+//!
+//! What it is: the time series a run records ([`Series`], one row per operator tick, measured
+//! and rendered force aligned by the command's sample time, and its CSV form), the report
+//! computed from it ([`analyse`] → [`ExperimentReport`]: RMS error from first contact and after
+//! stable, per band and over time, time to stable, reconstruction error, contact-switch latency,
+//! parameter errors against a known truth), the spectra behind the bands ([`spectrum`]) and the
+//! stdout [`table`]. The in-process harness (`lab`) and the networked operator app build the
+//! same [`Series`] and print the same report.
+//!
+//! What it is not: no plots (those are `lab`'s), no files, no clock.
+
+mod analyse;
+pub mod spectrum;
+mod table;
+
+pub use analyse::{
+    BANDS, Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series,
+    ThesisFigures, Window, analyse, parameter_report,
+};
+pub use table::table;

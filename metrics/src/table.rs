@@ -1,0 +1,119 @@
+//! The experiment report as people read it on stdout: this run's figures next to the thesis's.
+//! `mmt experiment` and the networked operator app print the same table.
+
+use std::fmt::Write;
+
+use mmt::model::backsolve::Confidence;
+
+use crate::ExperimentReport;
+
+/// The stdout table: this run's figures next to the thesis's.
+pub fn table(r: &ExperimentReport) -> String {
+    let pct = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2} %"));
+    let sec = |v: Option<f64>| v.map_or("never".to_string(), |v| format!("{v:.2} s"));
+    let ms = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1} ms"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{} on scene {} — trajectory {}, {:.0} s simulated, seed {}, one-way delay {} ms",
+        r.experiment, r.scene, r.trajectory, r.sim_seconds, r.seed, r.delay_ms
+    );
+    let _ = writeln!(out, "{:<46} {:>14}   thesis", "", "this run");
+    let mut row = |name: &str, value: String, thesis: &str| {
+        let _ = writeln!(out, "{name:<46} {value:>14}   {thesis}");
+    };
+    row("RMS error, from first contact", pct(r.rms_error_pct), "—");
+    row(
+        "RMS error, after the parameters are stable",
+        pct(r.rms_error_pct_after_stable),
+        "~30 % low freq., up to 100 % high",
+    );
+    row(
+        "  tangential axis (the thesis's y) only",
+        pct(r.tangential_rms_error_pct_after_stable),
+        "",
+    );
+    if r.rms_error_pct_after_stable_vs_true_force.is_some() {
+        row(
+            "  against the true force (no sensor noise, bias)",
+            pct(r.rms_error_pct_after_stable_vs_true_force),
+            "",
+        );
+    }
+    for b in &r.bands {
+        row(
+            &format!("  band {:.1}–{:.1} Hz", b.lo_hz, b.hi_hz),
+            pct(b.rms_error_pct),
+            if b.hi_hz <= 0.3 {
+                "< 0.25 N, ~30 %"
+            } else {
+                "~1 N plateau, up to 100 %"
+            },
+        );
+    }
+    row(
+        "RMS error with remote-only contact (thesis way)",
+        pct(r.rms_error_pct_remote_contact),
+        "",
+    );
+    row(
+        "time to stable parameters",
+        sec(r.time_to_stable_s),
+        "16.1 s (exp 2)",
+    );
+    row(
+        "rendering starts after first contact",
+        sec(r.render_start_s),
+        "",
+    );
+    row(
+        "estimator reconstruction error",
+        pct(r.reconstruction_error_pct),
+        "~5 % (exp 2)",
+    );
+    let l = &r.contact_switch_latency_ms;
+    row(
+        "contact switch latency, operator-side detection",
+        ms(l.local),
+        "—",
+    );
+    row(
+        "contact switch latency, remote state only",
+        ms(l.remote_only),
+        &format!(
+            "a round trip ({:.0} ms)",
+            r.thesis.contact_switch_latency_ms
+        ),
+    );
+    for p in &r.parameters {
+        let values: Vec<String> = p
+            .values
+            .iter()
+            .map(|(name, truth, est, err)| {
+                if err.is_finite() {
+                    format!("{name} {est:.4} ({truth}, {err:+.1} %)")
+                } else {
+                    format!("{name} {est:.4} ({truth})")
+                }
+            })
+            .collect();
+        let _ = writeln!(out, "parameters, {}: {}", p.axes, values.join(", "));
+        let confidence = match p.confidence {
+            Confidence::Identified => "identified",
+            Confidence::Low { .. } => "LOW, parameter errors amplified",
+        };
+        let updates = match (p.low_confidence_updates, p.confirmed_updates) {
+            (Some(low), Some(all)) => format!(", {low} of {all} confirmed sets low-confidence"),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            out,
+            "back-solve confidence, {}: {confidence} (condition {:.1}){updates}",
+            p.axes, p.condition
+        );
+    }
+    if !r.left_out.is_empty() {
+        let _ = writeln!(out, "left out: {}", r.left_out.join("; "));
+    }
+    out
+}

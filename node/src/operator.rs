@@ -1,0 +1,464 @@
+//! The operator node: device position → contact on the latest received cloud (remote contact as
+//! fallback) → renderers with the latest accepted, smoothed parameters → force (`DESIGN.md` §6).
+//!
+//! Received messages are handed over as they arrive ([`OperatorNode::on_message`]); each tick
+//! ([`OperatorNode::step`]) takes the device position and velocity and returns the force to
+//! display and the command to send. Beyond the thesis:
+//! - **local contact** on the delayed cloud (thesis H.2.1): making and breaking contact is felt at
+//!   once, not a round trip later; the telerobot's contact state is the fallback;
+//! - **state sync**: the telerobot's estimate of the object's state (contact deflection, mass
+//!   velocity) at a past sample time is blended in (gain ≈ 0.1, §11.6) by rewinding the renderers
+//!   to that tick and replaying the stored inputs to now;
+//! - **model start mid-contact** (§11.5): when the first (or a new) model arrives during a
+//!   contact, the episode is replayed from its onset with the new model instead of starting from
+//!   F = 0 now.
+
+use super::history::History;
+use super::tracker::{ContactTracker, Tracked};
+use super::wire::{gated_from_wire, surface_frame_from_wire};
+use super::{NodeSettings, telerobot::NodeError};
+use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
+use mmt::model::Structure;
+use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
+use mmt::vec3;
+use protocol::operator_to_telerobot::Command;
+use protocol::session::Session;
+use protocol::telerobot_to_operator::{self as wire, Message};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// How the operator decides contact and keeps in step.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OperatorConfig {
+    /// Detect contact locally on the received cloud (else use the telerobot's contact state).
+    pub local_contact: bool,
+    /// Apply the telerobot's state-sync messages.
+    pub state_sync: bool,
+    /// Blending gain of a state sync in (0, 1]. Default 0.1 (§11.6: replacing outright injects
+    /// b2 × velocity noise).
+    pub sync_gain: f64,
+    /// Replay the current contact episode when a model arrives mid-contact (§11.5).
+    pub replay_on_model_start: bool,
+}
+
+impl Default for OperatorConfig {
+    fn default() -> Self {
+        OperatorConfig {
+            local_contact: true,
+            state_sync: true,
+            sync_gain: 0.1,
+            replay_on_model_start: true,
+        }
+    }
+}
+
+/// One tick's result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OperatorOutput {
+    /// Force to display: the force on the tool [N], world frame.
+    pub force_n: [f64; 3],
+    /// Command to send to the telerobot.
+    pub command: Command,
+    /// In contact this tick (as the renderer sees it).
+    pub in_contact: bool,
+    /// A model is being rendered.
+    pub rendering: bool,
+}
+
+/// Counters for reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct OperatorStats {
+    /// Ticks stepped.
+    pub ticks: u64,
+    /// Parameter sets accepted (after the local gates).
+    pub parameter_sets: u64,
+    /// Parameter sets the local gates rejected.
+    pub parameter_rejections: u64,
+    /// Models started (first model, then each new model id).
+    pub models: u64,
+    /// Episode replays at model start, and the ticks they replayed.
+    pub model_replays: u64,
+    /// State syncs applied, and the ticks they replayed.
+    pub syncs: u64,
+    /// Ticks replayed by syncs and model starts.
+    pub replayed_ticks: u64,
+    /// State syncs ignored (not in contact, too old, or rate-limited).
+    pub syncs_skipped: u64,
+    /// Clouds received and indexed.
+    pub clouds: u64,
+    /// Clouds that could not be indexed.
+    pub rejected_clouds: u64,
+    /// Contact onsets.
+    pub contact_onsets: u64,
+    /// Ticks with a non-finite device reading (force 0).
+    pub rejected_inputs: u64,
+}
+
+/// The tangential renderer of one axis, by structure.
+#[derive(Clone, Debug)]
+pub(super) enum Tangential {
+    Free,
+    Sliding(SlidingMassRenderer),
+    Shear(ShearRenderer),
+}
+
+/// The operator node.
+pub struct OperatorNode {
+    settings: NodeSettings,
+    config: OperatorConfig,
+    proxy: Proxy,
+    cloud: Option<Arc<CloudIndex>>,
+    tracker: ContactTracker,
+    remote: Option<wire::Contact>,
+    normal: Option<KelvinVoigtRenderer>,
+    pub(super) tangential: [Tangential; 2],
+    history: History,
+    episode_onset_ns: Option<i64>,
+    model_id: Option<u32>,
+    rendering: bool,
+    remote_in_contact: bool,
+    last_sync_ns: Option<i64>,
+    session: Session,
+    stats: OperatorStats,
+}
+
+impl OperatorNode {
+    /// A node for `settings`, the device starting at `device_m`.
+    pub fn new(
+        settings: NodeSettings,
+        config: OperatorConfig,
+        device_m: [f64; 3],
+    ) -> Result<Self, NodeError> {
+        let r = settings.renderer;
+        let normal = match settings.normal.structure {
+            Structure::Free => None,
+            _ => Some(KelvinVoigtRenderer::new(r)?),
+        };
+        let tangent = || -> Result<Tangential, NodeError> {
+            Ok(match settings.tangential.structure {
+                Structure::Free => Tangential::Free,
+                Structure::KelvinVoigt => Tangential::Shear(ShearRenderer::new(r)?),
+                Structure::SlidingMass { .. } => Tangential::Sliding(SlidingMassRenderer::new(r)?),
+            })
+        };
+        Ok(OperatorNode {
+            proxy: Proxy::new(settings.proxy, device_m)
+                .map_err(|e| NodeError::Proxy(e.to_string()))?,
+            cloud: None,
+            tracker: ContactTracker::new(settings.period_ns as f64 * 1e-9),
+            remote: None,
+            normal,
+            tangential: [tangent()?, tangent()?],
+            history: History::new(),
+            episode_onset_ns: None,
+            model_id: None,
+            rendering: false,
+            remote_in_contact: false,
+            last_sync_ns: None,
+            session: Session::new(),
+            stats: OperatorStats::default(),
+            config,
+            settings,
+        })
+    }
+
+    /// Hands over a message from the telerobot.
+    pub fn on_message(&mut self, message: &Message, now_ns: i64) {
+        match message {
+            Message::Parameters(p) => self.on_parameters(p, now_ns),
+            Message::Contact(c)
+                if self
+                    .remote
+                    .is_none_or(|r| c.command_sample_time_ns >= r.command_sample_time_ns) =>
+            {
+                self.remote = Some(*c);
+            }
+            Message::StateSync(s) => self.on_sync(s, now_ns),
+            Message::Cloud(frame) => self.on_cloud(frame),
+            _ => {}
+        }
+    }
+
+    /// Installs a cloud: builds its index (the daemon may instead build it off the haptic thread
+    /// and call [`Self::set_cloud`]).
+    fn on_cloud(&mut self, frame: &wire::CloudFrame) {
+        if !self.config.local_contact {
+            return; // contact comes from the telerobot: the cloud is not needed here
+        }
+        let built = mmt::cloud::CloudFrame::new(
+            frame.points.clone(),
+            frame.timestamp_ns,
+            mmt::cloud::Pose::default(),
+        )
+        .ok()
+        .and_then(|f| CloudIndex::build(&f).ok());
+        match built {
+            Some(index) => self.set_cloud(Arc::new(index)),
+            None => self.stats.rejected_clouds += 1,
+        }
+    }
+
+    /// Installs an already built cloud index (built off the haptic thread, or shared).
+    /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is denser
+    /// than any before), so that no proxy step allocates.
+    pub fn set_cloud(&mut self, index: Arc<CloudIndex>) {
+        self.proxy.prepare(index.as_ref());
+        self.cloud = Some(index);
+        self.stats.clouds += 1;
+    }
+
+    fn on_parameters(&mut self, p: &wire::Parameters, now_ns: i64) {
+        let mut accepted = false;
+        for set in [p.normal, p.tangential].into_iter().flatten() {
+            match gated_from_wire(&set) {
+                Ok(g) => {
+                    let mut any = self.normal.as_mut().is_some_and(|r| r.set_target(&g));
+                    for t in &mut self.tangential {
+                        any |= match t {
+                            Tangential::Sliding(r) => r.set_target(&g),
+                            Tangential::Shear(r) => r.set_target(&g),
+                            Tangential::Free => false,
+                        };
+                    }
+                    accepted |= any;
+                    if any {
+                        self.stats.parameter_sets += 1;
+                    }
+                }
+                Err(_) => self.stats.parameter_rejections += 1,
+            }
+        }
+        if !accepted {
+            return;
+        }
+        // Rendering starts once every axis group has a model.
+        let normal_ready = self.normal.as_ref().is_none_or(|r| r.target().is_some());
+        let tangential_ready = self.tangential.iter().all(|t| match t {
+            Tangential::Sliding(r) => r.target().is_some(),
+            Tangential::Shear(r) => r.has_target(),
+            Tangential::Free => true,
+        });
+        self.rendering = normal_ready && tangential_ready;
+        if !self.rendering {
+            return;
+        }
+        if self.model_id != Some(p.model_id) {
+            self.model_id = Some(p.model_id);
+            self.stats.models += 1;
+            if self.config.replay_on_model_start
+                && let Some(onset) = self.episode_onset_ns
+            {
+                // Render the whole episode (as far as the history reaches) with the new model.
+                let ticks =
+                    self.history
+                        .replay_from(onset, now_ns, &mut self.tangential, None, true);
+                self.stats.model_replays += 1;
+                self.stats.replayed_ticks += ticks as u64;
+            }
+        }
+    }
+
+    fn on_sync(&mut self, s: &wire::StateSync, now_ns: i64) {
+        let replay = self.history.ticks_since(s.command_sample_time_ns);
+        // Rate-limit long replays (large delays) to one every 50 ms.
+        let min_interval = if replay.unwrap_or(0) > 100 {
+            50_000_000
+        } else {
+            0
+        };
+        let usable = self.config.state_sync
+            && s.in_contact
+            && self.rendering
+            && replay.is_some()
+            && self
+                .last_sync_ns
+                .is_none_or(|last| now_ns - last >= min_interval)
+            && s.tangential
+                .iter()
+                .all(|a| a.mass_position_m.is_finite() && a.mass_velocity_m_per_s.is_finite());
+        if !usable || !self.history.in_contact_at(s.command_sample_time_ns) {
+            self.stats.syncs_skipped += 1;
+            return;
+        }
+        self.last_sync_ns = Some(now_ns);
+        let sync = [0, 1].map(|i| {
+            (
+                s.tangential[i].mass_position_m,
+                s.tangential[i].mass_velocity_m_per_s,
+                self.config.sync_gain,
+            )
+        });
+        let ticks = self.history.replay_from(
+            s.command_sample_time_ns,
+            now_ns,
+            &mut self.tangential,
+            Some(sync),
+            false,
+        );
+        self.stats.syncs += 1;
+        self.stats.replayed_ticks += ticks as u64;
+    }
+
+    /// One tick: device position [m] and velocity [m/s], world frame.
+    pub fn step(
+        &mut self,
+        now_ns: i64,
+        position_m: [f64; 3],
+        velocity_m_per_s: [f64; 3],
+    ) -> OperatorOutput {
+        self.stats.ticks += 1;
+        let header = self.session.next_header(now_ns, now_ns);
+        let command = Command {
+            header,
+            position_m,
+            velocity_m_per_s,
+        };
+        if !(vec3::is_finite(position_m) && vec3::is_finite(velocity_m_per_s)) {
+            self.stats.rejected_inputs += 1;
+            return OperatorOutput {
+                force_n: [0.0; 3],
+                command,
+                in_contact: false,
+                rendering: self.rendering,
+            };
+        }
+        let tracked = self.contact(position_m);
+        if tracked.onset {
+            self.stats.contact_onsets += 1;
+            self.episode_onset_ns = Some(now_ns);
+        }
+        if !tracked.in_contact {
+            self.episode_onset_ns = None;
+        }
+        let mut force = [0.0; 3];
+        if let Some(frame) = tracked.frame {
+            let in_contact = tracked.in_contact;
+            if let (Some(r), Some(s)) = (&mut self.normal, tracked.normal_position_m) {
+                let f = r.step(-s, -vec3::dot(velocity_m_per_s, frame.normal), in_contact);
+                force = vec3::add(force, vec3::scale(frame.normal, f));
+            }
+            let tangents = [frame.tangent1, frame.tangent2];
+            let mut inputs = [[0.0; 2]; 2];
+            for (i, axis) in tangents.iter().enumerate() {
+                let (x, v) = (
+                    vec3::dot(position_m, *axis),
+                    vec3::dot(velocity_m_per_s, *axis),
+                );
+                inputs[i] = [x, v];
+                let f = step_tangential(&mut self.tangential[i], x, v, in_contact);
+                force = vec3::add(force, vec3::scale(*axis, f));
+            }
+            self.history
+                .push(now_ns, in_contact, inputs, &self.tangential);
+        } else {
+            self.history
+                .push(now_ns, false, [[0.0; 2]; 2], &self.tangential);
+        }
+        OperatorOutput {
+            force_n: force,
+            command,
+            in_contact: tracked.in_contact,
+            rendering: self.rendering,
+        }
+    }
+
+    /// Contact from the local proxy on the latest cloud, or from the telerobot's state.
+    fn contact(&mut self, position_m: [f64; 3]) -> Tracked {
+        if self.config.local_contact
+            && let Some(cloud) = &self.cloud
+        {
+            let out = self.proxy.step(position_m, cloud.as_ref());
+            return self.tracker.update(&out, position_m);
+        }
+        // Remote contact (the thesis): the telerobot's state as it arrives, its frame and surface.
+        let Some(remote) = self.remote else {
+            return Tracked {
+                in_contact: false,
+                onset: false,
+                release: false,
+                frame: None,
+                normal_position_m: None,
+            };
+        };
+        let frame = remote.frame.as_ref().and_then(surface_frame_from_wire);
+        let touching = !matches!(remote.state, wire::ContactState::Free);
+        let out = ContactOutput {
+            state: if touching {
+                ContactState::Contact
+            } else {
+                ContactState::Free
+            },
+            step_state: ContactState::Free,
+            proxy_m: remote.proxy_position_m,
+            normal: frame.map(|f| f.normal),
+            frame,
+            penetration_m: remote.penetration_m,
+            surface_point_m: remote.surface_point_m,
+            points_used: 0,
+        };
+        // The telerobot's state decides contact, whatever the local position says (the thesis);
+        // the local position only gives the depth for the normal axis.
+        let mut t = self.tracker.update(&out, position_m);
+        let in_contact = touching && t.frame.is_some();
+        t.onset = in_contact && !self.remote_in_contact;
+        t.release = !in_contact && self.remote_in_contact;
+        t.in_contact = in_contact;
+        self.remote_in_contact = in_contact;
+        t
+    }
+
+    /// Renderer counters (normal, tangential axes).
+    pub fn renderer_stats(&self) -> Vec<RendererStats> {
+        let mut v: Vec<RendererStats> = self.normal.iter().map(|r| r.stats()).collect();
+        for t in &self.tangential {
+            match t {
+                Tangential::Sliding(r) => v.push(r.stats()),
+                Tangential::Shear(r) => v.push(r.stats()),
+                Tangential::Free => {}
+            }
+        }
+        v
+    }
+
+    /// The contact deflection and mass velocity of each sliding tangential axis (for drift
+    /// reports).
+    pub fn tangential_state(&self) -> [Option<(f64, f64)>; 2] {
+        self.tangential.each_ref().map(|t| match t {
+            Tangential::Sliding(r) => Some((r.deflection_m(), r.snapshot().mass_velocity_m_per_s)),
+            _ => None,
+        })
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> OperatorStats {
+        self.stats
+    }
+
+    /// The protocol session (sequence numbers, echoes, RTT).
+    pub fn session(&mut self) -> &mut Session {
+        &mut self.session
+    }
+
+    /// A model is being rendered.
+    pub fn is_rendering(&self) -> bool {
+        self.rendering
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &OperatorConfig {
+        &self.config
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &NodeSettings {
+        &self.settings
+    }
+}
+
+pub(super) fn step_tangential(t: &mut Tangential, x: f64, v: f64, in_contact: bool) -> f64 {
+    match t {
+        Tangential::Sliding(r) => r.step(x, v, in_contact),
+        Tangential::Shear(r) => r.step(x, v, in_contact),
+        Tangential::Free => 0.0,
+    }
+}

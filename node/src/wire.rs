@@ -1,0 +1,149 @@
+//! Conversions between the model's types and the wire's (`protocol`, which depends on nothing of
+//! ours).
+
+use mmt::contact::SurfaceFrame;
+use mmt::model::backsolve::Params;
+use mmt::model::gates::{GateRejection, Gated, gate_physical};
+use mmt::model::{KelvinVoigt, Physical, Structure};
+use protocol::telerobot_to_operator as wire;
+use protocol::telerobot_to_operator::{ModelStructure, ModelTerms, ParameterSet};
+
+/// The wire form of a structure.
+pub fn structure_to_wire(s: Structure) -> ModelStructure {
+    match s {
+        Structure::Free => ModelStructure::Free,
+        Structure::KelvinVoigt => ModelStructure::KelvinVoigt,
+        Structure::SlidingMass {
+            ground_spring,
+            friction,
+        } => ModelStructure::SlidingMass {
+            ground_spring,
+            friction,
+        },
+    }
+}
+
+/// The model's form of a wire structure.
+pub fn structure_from_wire(s: ModelStructure) -> Structure {
+    match s {
+        ModelStructure::Free => Structure::Free,
+        ModelStructure::KelvinVoigt => Structure::KelvinVoigt,
+        ModelStructure::SlidingMass {
+            ground_spring,
+            friction,
+        } => Structure::SlidingMass {
+            ground_spring,
+            friction,
+        },
+    }
+}
+
+/// The wire form of a gated set: only the terms its structure has.
+pub fn parameter_set(g: &Gated, sample_time_ns: i64) -> Option<ParameterSet> {
+    let terms = match (g.structure(), g.params()) {
+        (Structure::KelvinVoigt, Params::KelvinVoigt(kv)) => ModelTerms::KelvinVoigt {
+            k_n_per_m: kv.k_n_per_m,
+            b_ns_per_m: kv.b_ns_per_m,
+        },
+        (
+            Structure::SlidingMass {
+                ground_spring,
+                friction,
+            },
+            Params::SlidingMass(p),
+        ) => ModelTerms::SlidingMass {
+            mass_kg: p.mass_kg,
+            k_ground_n_per_m: ground_spring.then_some(p.k_ground_n_per_m),
+            b_ground_ns_per_m: p.b_ground_ns_per_m,
+            k_contact_n_per_m: p.k_contact_n_per_m,
+            b_contact_ns_per_m: p.b_contact_ns_per_m,
+            coulomb_n: friction.then_some(p.coulomb_n),
+        },
+        _ => return None,
+    };
+    Some(ParameterSet {
+        sample_time_ns,
+        residual: g.residual(),
+        terms,
+    })
+}
+
+/// Gates a received set again (defence in depth: the operator renders nothing it has not checked
+/// itself).
+pub fn gated_from_wire(set: &ParameterSet) -> Result<Gated, GateRejection> {
+    match set.terms {
+        ModelTerms::KelvinVoigt {
+            k_n_per_m,
+            b_ns_per_m,
+        } => gate_physical(
+            Structure::KelvinVoigt,
+            &Params::KelvinVoigt(KelvinVoigt {
+                k_n_per_m,
+                b_ns_per_m,
+            }),
+        ),
+        ModelTerms::SlidingMass {
+            mass_kg,
+            k_ground_n_per_m,
+            b_ground_ns_per_m,
+            k_contact_n_per_m,
+            b_contact_ns_per_m,
+            coulomb_n,
+        } => {
+            let structure = Structure::SlidingMass {
+                ground_spring: k_ground_n_per_m.is_some(),
+                friction: coulomb_n.is_some(),
+            };
+            let p = Physical {
+                mass_kg,
+                k_ground_n_per_m: k_ground_n_per_m.unwrap_or(0.0),
+                b_ground_ns_per_m,
+                k_contact_n_per_m,
+                b_contact_ns_per_m,
+                coulomb_n: coulomb_n.unwrap_or(0.0),
+            };
+            gate_physical(structure, &Params::SlidingMass(p))
+        }
+    }
+}
+
+/// The wire form of a surface frame.
+pub fn surface_frame_to_wire(f: &SurfaceFrame) -> wire::SurfaceFrame {
+    wire::SurfaceFrame {
+        normal: f.normal,
+        tangent1: f.tangent1,
+        tangent2: f.tangent2,
+    }
+}
+
+/// A surface frame from the wire, if it is orthonormal and right-handed (within 1e-6).
+pub fn surface_frame_from_wire(f: &wire::SurfaceFrame) -> Option<SurfaceFrame> {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |a: [f64; 3]| (dot(a, a) - 1.0).abs() < 1e-6;
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let ok = unit(f.normal)
+        && unit(f.tangent1)
+        && unit(f.tangent2)
+        && dot(f.normal, f.tangent1).abs() < 1e-6
+        && dot(cross(f.normal, f.tangent1), f.tangent2) > 1.0 - 1e-6;
+    ok.then_some(SurfaceFrame {
+        normal: f.normal,
+        tangent1: f.tangent1,
+        tangent2: f.tangent2,
+    })
+}
+
+/// The wire form of a contact state.
+pub fn contact_state_to_wire(s: mmt::contact::ContactState) -> wire::ContactState {
+    match s {
+        mmt::contact::ContactState::Free => wire::ContactState::Free,
+        mmt::contact::ContactState::Contact => wire::ContactState::Contact,
+        mmt::contact::ContactState::Entrenched => wire::ContactState::Entrenched,
+    }
+}
