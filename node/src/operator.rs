@@ -13,19 +13,22 @@
 //!   contact, the episode is replayed from its onset with the new model instead of starting from
 //!   F = 0 now.
 
-use super::history::History;
-use super::tracker::{ContactTracker, Tracked};
-use super::wire::{gated_from_wire, surface_frame_from_wire};
-use super::{NodeSettings, telerobot::NodeError};
+use std::sync::Arc;
+
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
 use mmt::model::Structure;
 use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
 use mmt::vec3;
+use protocol::Header;
 use protocol::operator_to_telerobot::Command;
-use protocol::session::Session;
 use protocol::telerobot_to_operator::{self as wire, Message};
 use serde::{Deserialize, Serialize};
-use std::sync::Arc;
+
+use crate::history::History;
+use crate::settings::OperatorSettings;
+use crate::telerobot::NodeError;
+use crate::tracker::{ContactTracker, Tracked};
+use crate::wire::{gated_from_wire, surface_frame_from_wire};
 
 /// How the operator decides contact and keeps in step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -57,7 +60,7 @@ impl Default for OperatorConfig {
 pub struct OperatorOutput {
     /// Force to display: the force on the tool [N], world frame.
     pub force_n: [f64; 3],
-    /// Command to send to the telerobot.
+    /// Command to send to the telerobot (its header unstamped: the endpoint's session stamps it).
     pub command: Command,
     /// In contact this tick (as the renderer sees it).
     pub in_contact: bool,
@@ -104,7 +107,7 @@ pub(super) enum Tangential {
 
 /// The operator node.
 pub struct OperatorNode {
-    settings: NodeSettings,
+    settings: OperatorSettings,
     config: OperatorConfig,
     proxy: Proxy,
     cloud: Option<Arc<CloudIndex>>,
@@ -118,24 +121,23 @@ pub struct OperatorNode {
     rendering: bool,
     remote_in_contact: bool,
     last_sync_ns: Option<i64>,
-    session: Session,
     stats: OperatorStats,
 }
 
 impl OperatorNode {
     /// A node for `settings`, the device starting at `device_m`.
     pub fn new(
-        settings: NodeSettings,
+        settings: OperatorSettings,
         config: OperatorConfig,
         device_m: [f64; 3],
     ) -> Result<Self, NodeError> {
         let r = settings.renderer;
-        let normal = match settings.normal.structure {
+        let normal = match settings.normal {
             Structure::Free => None,
             _ => Some(KelvinVoigtRenderer::new(r)?),
         };
         let tangent = || -> Result<Tangential, NodeError> {
-            Ok(match settings.tangential.structure {
+            Ok(match settings.tangential {
                 Structure::Free => Tangential::Free,
                 Structure::KelvinVoigt => Tangential::Shear(ShearRenderer::new(r)?),
                 Structure::SlidingMass { .. } => Tangential::Sliding(SlidingMassRenderer::new(r)?),
@@ -155,7 +157,6 @@ impl OperatorNode {
             rendering: false,
             remote_in_contact: false,
             last_sync_ns: None,
-            session: Session::new(),
             stats: OperatorStats::default(),
             config,
             settings,
@@ -307,9 +308,8 @@ impl OperatorNode {
         velocity_m_per_s: [f64; 3],
     ) -> OperatorOutput {
         self.stats.ticks += 1;
-        let header = self.session.next_header(now_ns, now_ns);
         let command = Command {
-            header,
+            header: Header::unstamped(now_ns),
             position_m,
             velocity_m_per_s,
         };
@@ -372,13 +372,7 @@ impl OperatorNode {
         }
         // Remote contact (the thesis): the telerobot's state as it arrives, its frame and surface.
         let Some(remote) = self.remote else {
-            return Tracked {
-                in_contact: false,
-                onset: false,
-                release: false,
-                frame: None,
-                normal_position_m: None,
-            };
+            return Tracked::default();
         };
         let frame = remote.frame.as_ref().and_then(surface_frame_from_wire);
         let touching = !matches!(remote.state, wire::ContactState::Free);
@@ -434,11 +428,6 @@ impl OperatorNode {
         self.stats
     }
 
-    /// The protocol session (sequence numbers, echoes, RTT).
-    pub fn session(&mut self) -> &mut Session {
-        &mut self.session
-    }
-
     /// A model is being rendered.
     pub fn is_rendering(&self) -> bool {
         self.rendering
@@ -450,7 +439,7 @@ impl OperatorNode {
     }
 
     /// The settings.
-    pub fn settings(&self) -> &NodeSettings {
+    pub fn settings(&self) -> &OperatorSettings {
         &self.settings
     }
 }

@@ -5,25 +5,29 @@
 //! 1. hands over commands as they arrive ([`TelerobotNode::on_command`]);
 //! 2. asks where the robot should go ([`TelerobotNode::target`]: the latest command, or hold still
 //!    when commands are older than the timeout);
-//! 3. moves the robot and reads its sensors (the bridge), maybe takes a camera frame;
-//! 4. steps the node with the sample ([`TelerobotNode::step`]), which returns the messages of the
-//!    tick: `Contact` and `Measurement` every tick, `Parameters` when a set is confirmed (and again
-//!    every 100 ms), `StateSync` every 10 ms in contact, `Cloud` for each camera frame.
+//! 3. moves the robot and reads its sensors (the bridge); installs the newest camera frame's
+//!    index if one was taken ([`TelerobotNode::set_cloud`]; the frame itself goes to the operator
+//!    as [`crate::cloud_to_wire`] makes it);
+//! 4. steps the node with the sample ([`TelerobotNode::step`]), which returns the datagrams of
+//!    the tick: `Contact` and `Measurement` every tick, `Parameters` when a set is confirmed (and
+//!    again every 100 ms), `StateSync` every 10 ms in contact. Their headers carry only the
+//!    sample time: the endpoint's session stamps the rest (`protocol::session::Session::stamp`).
 
-use super::NodeSettings;
-use super::playout::{Playout, Push};
-use super::tracker::{ContactTracker, Tracked};
-use super::wire::{contact_state_to_wire, parameter_set, surface_frame_to_wire};
-use mmt::cloud::CloudFrame;
+use std::sync::Arc;
+
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy, SurfaceFrame};
 use mmt::estimator::{AxisSample, Estimator, EstimatorError, EstimatorStats};
 use mmt::model::Structure;
 use mmt::model::gates::Gated;
 use mmt::vec3;
-use protocol::session::Session;
-use protocol::telerobot_to_operator::{self as wire, AxisState, Message};
-use sim::world::Sample3;
-use std::sync::Arc;
+use protocol::Header;
+use protocol::telerobot_to_operator::{self as wire, AxisState, Datagram};
+
+use crate::bridge::{RobotSample, Target};
+use crate::playout::{Playout, Push};
+use crate::settings::TelerobotSettings;
+use crate::tracker::{ContactTracker, Tracked};
+use crate::wire::{contact_state_to_wire, parameter_set, surface_frame_to_wire};
 
 /// Normal force on the tool above which the normal contact counts as loaded [N]: three standard
 /// deviations of the Franka-like force noise.
@@ -42,19 +46,6 @@ pub struct CommandSample {
     pub received_ns: i64,
 }
 
-/// Where the robot is told to go this tick.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Target {
-    /// Position [m].
-    pub position_m: [f64; 3],
-    /// Velocity [m/s] (0 when holding).
-    pub velocity_m_per_s: [f64; 3],
-    /// Sample time of the command being executed (the last one when holding) [ns].
-    pub command_sample_time_ns: i64,
-    /// Commands are stale: the robot holds still.
-    pub holding: bool,
-}
-
 /// Counters for reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct TelerobotStats {
@@ -70,7 +61,7 @@ pub struct TelerobotStats {
     pub skipped_commands: u64,
     /// Samples with a non-finite value (dropped).
     pub rejected_samples: u64,
-    /// Camera frames that could not be indexed.
+    /// Camera frames that could not be indexed ([`TelerobotNode::count_rejected_cloud`]).
     pub rejected_clouds: u64,
     /// Contact episodes.
     pub contact_onsets: u64,
@@ -78,7 +69,7 @@ pub struct TelerobotStats {
 
 /// The telerobot node.
 pub struct TelerobotNode {
-    settings: NodeSettings,
+    settings: TelerobotSettings,
     proxy: Proxy,
     cloud: Option<Arc<CloudIndex>>,
     tracker: ContactTracker,
@@ -87,8 +78,7 @@ pub struct TelerobotNode {
     observer: [Observer; 2],
     playout: Playout,
     hold_position: Option<[f64; 3]>,
-    session: Session,
-    out: Vec<Message>,
+    out: Vec<Datagram>,
     model_id: u32,
     latest_normal: Option<Gated>,
     latest_tangential: Option<Gated>,
@@ -104,7 +94,7 @@ pub struct TelerobotNode {
 
 impl TelerobotNode {
     /// A node for `settings`, the tool starting at `tool_m`.
-    pub fn new(settings: NodeSettings, tool_m: [f64; 3]) -> Result<Self, NodeError> {
+    pub fn new(settings: TelerobotSettings, tool_m: [f64; 3]) -> Result<Self, NodeError> {
         let estimator =
             |c: &mmt::estimator::EstimatorConfig| -> Result<Option<Estimator>, NodeError> {
                 if c.structure == Structure::Free {
@@ -123,7 +113,6 @@ impl TelerobotNode {
             observer: [Observer::default(); 2],
             playout: Playout::new(),
             hold_position: None,
-            session: Session::new(),
             out: Vec::with_capacity(8),
             model_id: 0,
             latest_normal: None,
@@ -194,25 +183,18 @@ impl TelerobotNode {
         }
     }
 
-    /// One tick: the bridge's sample for the command being executed, and a camera frame if one
-    /// was taken this tick. Returns the messages to send.
+    /// One tick: the bridge's sample for the command being executed. Returns the datagrams to
+    /// send (unstamped: the endpoint's session stamps them).
     pub fn step(
         &mut self,
         now_ns: i64,
         command_sample_time_ns: i64,
-        sample: &Sample3,
-        camera: Option<CloudFrame>,
-    ) -> &[Message] {
+        sample: &RobotSample,
+    ) -> &[Datagram] {
         self.out.clear();
         self.stats.ticks += 1;
         self.reconstruction = None;
-        if let Some(frame) = camera {
-            self.take_frame(now_ns, frame);
-        }
-        let finite = [sample.position_m, sample.velocity_m_per_s, sample.force_n]
-            .iter()
-            .all(|v| vec3::is_finite(*v));
-        if !finite {
+        if !sample.is_finite() {
             self.stats.rejected_samples += 1;
             return &self.out;
         }
@@ -239,28 +221,8 @@ impl TelerobotNode {
         &self.out
     }
 
-    fn take_frame(&mut self, now_ns: i64, frame: CloudFrame) {
-        match CloudIndex::build(&frame) {
-            Ok(index) => {
-                self.frame_id += 1;
-                let pose = frame.sensor_pose();
-                self.out.push(Message::Cloud(wire::CloudFrame {
-                    frame_id: self.frame_id,
-                    timestamp_ns: now_ns,
-                    sensor_position_m: pose.translation_m,
-                    sensor_orientation_xyzw: pose.quaternion_xyzw(),
-                    points: frame.into_points(),
-                }));
-                // Reserved here, once per frame, so that no proxy step allocates.
-                self.proxy.prepare(&index);
-                self.cloud = Some(Arc::new(index));
-            }
-            Err(_) => self.stats.rejected_clouds += 1,
-        }
-    }
-
     /// Runs both estimators in the episode's frame and the state observers.
-    fn estimate(&mut self, now_ns: i64, sample: &Sample3, tracked: &Tracked) {
+    fn estimate(&mut self, now_ns: i64, sample: &RobotSample, tracked: &Tracked) {
         let t = now_ns as f64 * 1e-9;
         let frame = tracked.frame.or(self.last_frame);
         let Some(frame) = frame else { return };
@@ -269,7 +231,7 @@ impl TelerobotNode {
             let s = AxisSample {
                 position_m: tracked.normal_position_m.unwrap_or(0.0),
                 velocity_m_per_s: vec3::dot(sample.velocity_m_per_s, frame.normal),
-                force_n: vec3::dot(sample.force_n, frame.normal),
+                force_n: vec3::dot(sample.force_on_tool_n, frame.normal),
             };
             // The surface pushes, never pulls: while the linear law would pull (lifting off fast)
             // the force is clamped at 0, which the linear regression would read as low damping.
@@ -284,7 +246,7 @@ impl TelerobotNode {
         let mut samples = tangents.map(|axis| AxisSample {
             position_m: vec3::dot(sample.position_m, axis),
             velocity_m_per_s: vec3::dot(sample.velocity_m_per_s, axis),
-            force_n: vec3::dot(sample.force_n, axis),
+            force_n: vec3::dot(sample.force_on_tool_n, axis),
         });
         if self.settings.tangential.structure == Structure::KelvinVoigt {
             // An anchored element: its law is in the displacement from where contact began.
@@ -329,7 +291,7 @@ impl TelerobotNode {
         &mut self,
         now_ns: i64,
         command_time: i64,
-        sample: &Sample3,
+        sample: &RobotSample,
         detected: &ContactOutput,
         tracked: &Tracked,
     ) {
@@ -339,17 +301,15 @@ impl TelerobotNode {
         if resend && (self.latest_normal.is_some() || self.latest_tangential.is_some()) {
             self.parameters_sent_ns = Some(now_ns);
             let set = |g: &Option<Gated>| g.as_ref().and_then(|g| parameter_set(g, now_ns));
-            let header = self.session.next_header(now_ns, now_ns);
-            self.out.push(Message::Parameters(wire::Parameters {
-                header,
+            self.out.push(Datagram::Parameters(wire::Parameters {
+                header: Header::unstamped(now_ns),
                 model_id: self.model_id,
                 normal: set(&self.latest_normal),
                 tangential: set(&self.latest_tangential),
             }));
         }
-        let header = self.session.next_header(now_ns, now_ns);
-        self.out.push(Message::Contact(wire::Contact {
-            header,
+        self.out.push(Datagram::Contact(wire::Contact {
+            header: Header::unstamped(now_ns),
             command_sample_time_ns: command_time,
             // The tracked contact: during the tracker's grace ticks the proxy may read Free while
             // the episode goes on.
@@ -375,9 +335,8 @@ impl TelerobotNode {
             && now_ns >= self.next_sync_ns
         {
             self.next_sync_ns = now_ns + self.settings.sync_period_ns;
-            let header = self.session.next_header(now_ns, now_ns);
-            self.out.push(Message::StateSync(wire::StateSync {
-                header,
+            self.out.push(Datagram::StateSync(wire::StateSync {
+                header: Header::unstamped(now_ns),
                 command_sample_time_ns: command_time,
                 tangential: self.observer.map(|o| AxisState {
                     mass_position_m: o.deflection_m,
@@ -387,21 +346,21 @@ impl TelerobotNode {
                 episode_onset_ns: self.episode_onset_ns,
             }));
         }
-        let header = self.session.next_header(now_ns, now_ns);
-        self.out.push(Message::Measurement(wire::Measurement {
-            header,
+        self.out.push(Datagram::Measurement(wire::Measurement {
+            header: Header::unstamped(now_ns),
             command_sample_time_ns: command_time,
             position_m: sample.position_m,
             velocity_m_per_s: sample.velocity_m_per_s,
-            force_on_tool_n: sample.force_n,
+            force_on_tool_n: sample.force_on_tool_n,
             in_contact: tracked.in_contact,
             estimator_stable: self.is_stable(),
             reconstruction: self.reconstruction.map(|(y2, e2)| [y2, e2]),
         }));
     }
 
-    /// Installs a cloud index built off the real-time thread (the daemon's camera thread, which
-    /// also sends the frame to the operator itself); `frame_id` is the id it was sent with.
+    /// Installs a cloud index (built off the real-time thread: the daemon's camera thread, or the
+    /// harness; whoever built it also sends the frame to the operator); `frame_id` is the id it
+    /// was sent with.
     /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is
     /// denser than any before), so that no proxy step allocates.
     pub fn set_cloud(&mut self, index: Arc<CloudIndex>, frame_id: u64) {
@@ -410,15 +369,9 @@ impl TelerobotNode {
         self.frame_id = frame_id;
     }
 
-    /// The index of the last camera frame and the id it was sent with (an operator receiving
-    /// the same frame may share it instead of building its own).
-    pub fn latest_cloud(&self) -> Option<(u64, Arc<CloudIndex>)> {
-        self.cloud.as_ref().map(|c| (self.frame_id, Arc::clone(c)))
-    }
-
-    /// The protocol session (sequence numbers, echoes, RTT).
-    pub fn session(&mut self) -> &mut Session {
-        &mut self.session
+    /// Counts a camera frame that could not be indexed.
+    pub fn count_rejected_cloud(&mut self) {
+        self.stats.rejected_clouds += 1;
     }
 
     /// The current tangential estimator (for reports).
@@ -465,7 +418,7 @@ impl TelerobotNode {
     }
 
     /// The settings.
-    pub fn settings(&self) -> &NodeSettings {
+    pub fn settings(&self) -> &TelerobotSettings {
         &self.settings
     }
 }
@@ -488,9 +441,11 @@ fn reconstruction(theta: &mmt::model::Theta, est: &Estimator) -> Option<(f64, f6
     })
 }
 
-/// Contact from the scene's true surface, when there is no cloud.
-fn geometric_contact(settings: &NodeSettings, position_m: [f64; 3]) -> ContactOutput {
-    let s = &settings.scene.surface;
+/// Contact from the surface known in advance (a simulated scene's), before any cloud.
+fn geometric_contact(settings: &TelerobotSettings, position_m: [f64; 3]) -> ContactOutput {
+    let Some(s) = settings.known_surface else {
+        return ContactOutput::free(position_m);
+    };
     let frame = SurfaceFrame::from_normal(s.normal);
     let height = vec3::dot(vec3::sub(position_m, s.point_m), s.normal);
     let touching = height < settings.proxy.r2_m;

@@ -41,7 +41,7 @@ pub struct ContactTracker {
 }
 
 /// What the tracker concluded this tick.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Tracked {
     /// In contact (pressing into the surface).
     pub in_contact: bool,

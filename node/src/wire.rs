@@ -1,10 +1,12 @@
 //! Conversions between the model's types and the wire's (`protocol`, which depends on nothing of
 //! ours).
 
+use mmt::cloud::CloudFrame;
 use mmt::contact::SurfaceFrame;
 use mmt::model::backsolve::Params;
 use mmt::model::gates::{GateRejection, Gated, gate_physical};
 use mmt::model::{KelvinVoigt, Physical, Structure};
+use mmt::vec3;
 use protocol::telerobot_to_operator as wire;
 use protocol::telerobot_to_operator::{ModelStructure, ModelTerms, ParameterSet};
 
@@ -118,25 +120,30 @@ pub fn surface_frame_to_wire(f: &SurfaceFrame) -> wire::SurfaceFrame {
 
 /// A surface frame from the wire, if it is orthonormal and right-handed (within 1e-6).
 pub fn surface_frame_from_wire(f: &wire::SurfaceFrame) -> Option<SurfaceFrame> {
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let unit = |a: [f64; 3]| (dot(a, a) - 1.0).abs() < 1e-6;
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    };
+    let unit = |a: [f64; 3]| (vec3::norm2(a) - 1.0).abs() < 1e-6;
     let ok = unit(f.normal)
         && unit(f.tangent1)
         && unit(f.tangent2)
-        && dot(f.normal, f.tangent1).abs() < 1e-6
-        && dot(cross(f.normal, f.tangent1), f.tangent2) > 1.0 - 1e-6;
+        && vec3::dot(f.normal, f.tangent1).abs() < 1e-6
+        && vec3::dot(vec3::cross(f.normal, f.tangent1), f.tangent2) > 1.0 - 1e-6;
     ok.then_some(SurfaceFrame {
         normal: f.normal,
         tangent1: f.tangent1,
         tangent2: f.tangent2,
     })
+}
+
+/// The wire form of a camera frame, sent as `frame_id`: its points, capture time and sensor
+/// pose. The daemon's camera thread and the in-process harness both send frames this way.
+pub fn cloud_to_wire(frame_id: u64, frame: CloudFrame) -> wire::CloudFrame {
+    let pose = *frame.sensor_pose();
+    wire::CloudFrame {
+        frame_id,
+        timestamp_ns: frame.timestamp_ns(),
+        sensor_position_m: pose.translation_m,
+        sensor_orientation_xyzw: pose.quaternion_xyzw(),
+        points: frame.into_points(),
+    }
 }
 
 /// The wire form of a contact state.

@@ -24,7 +24,7 @@ use crate::helper;
 use crate::net::{self, NetConfig, NetError, OperatorLink};
 use crate::report::{self, NetworkedReport, RunFacts};
 use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
-use crate::settings::{SettingsError, node_settings};
+use node::{OperatorSettings, SettingsError};
 
 /// Everything `operator run` needs, validated.
 #[derive(Clone, Debug)]
@@ -166,7 +166,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         }
     };
     let welcome = link.status().welcome().ok_or(RunError::Stopped)?;
-    let settings = node_settings(&welcome.scene)?;
+    let settings = OperatorSettings::from_welcome(&welcome.scene)?;
     tracing::info!(scene = %welcome.scene.name, rate_hz = welcome.scene.control_rate_hz,
         normal = ?welcome.scene.normal, tangential = ?welcome.scene.tangential,
         "session open: rendering the telerobot's scene");
@@ -177,7 +177,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         "loop-overrun watchdog set to the session's tick period");
     device.update(Duration::ZERO)?;
     let start = safety.command_position(device.measured_cp(), device.clutch());
-    let node = Box::new(OperatorNode::new(settings.clone(), config.node, start)?);
+    let node = Box::new(OperatorNode::new(settings, config.node, start)?);
 
     let exchange = std::sync::Arc::new(Exchange::default());
     let helper_stop = Shutdown::new();

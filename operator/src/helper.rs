@@ -21,7 +21,7 @@ use rt::Shutdown;
 
 use crate::haptic::{Exchange, TickRecord};
 use crate::net::OperatorLink;
-use crate::settings::node_settings;
+use node::OperatorSettings;
 
 /// How often the helper wakes.
 const POLL: Duration = Duration::from_millis(2);
@@ -156,7 +156,7 @@ impl Helper {
             .ticks
             .last()
             .map_or([0.0; 3], |t| t.position_m);
-        let node = node_settings(&welcome.scene)
+        let node = OperatorSettings::from_welcome(&welcome.scene)
             .map_err(|e| e.to_string())
             .and_then(|s| OperatorNode::new(s, self.config, position).map_err(|e| e.to_string()));
         match node {

@@ -2,14 +2,14 @@
 //!
 //! What it is:
 //! - [`app`]: the operator app — [`app::run`], what `operator run` calls: the QUIC client, the
-//!   1 kHz haptic loop ([`haptic`]) stepping `mmt`'s operator node exactly as the in-process
+//!   1 kHz haptic loop ([`haptic`]) stepping the operator node (`node`) exactly as the in-process
 //!   harness does, its helper thread ([`helper`]), and the report ([`report`]): `mmt
 //!   experiment`'s figures plus `measured_delay_ms`, loop timing and link statistics;
 //! - [`demo`]: the whole system in one process over loopback (the README's first command);
 //! - [`device`]: haptic devices behind one trait with simulated twins; [`safety`]: the one safety
 //!   layer between renderer and device;
-//! - [`net`]: the QUIC client with its lock-free hand-off to the haptic loop; [`settings`]: the
-//!   operator node's settings from the telerobot's `Welcome`;
+//! - [`net`]: the QUIC client with its lock-free hand-off to the haptic loop (the node's
+//!   settings come from the telerobot's `Welcome`, `node::OperatorSettings::from_welcome`);
 //! - [`cli`]: the command-line entry points of the `operator` binary.
 //!
 //! What it is not: no rendering or estimation logic of its own (that is `mmt`), no wire format
@@ -25,4 +25,3 @@ pub mod helper;
 pub mod net;
 pub mod report;
 pub mod safety;
-pub mod settings;

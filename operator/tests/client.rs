@@ -11,8 +11,8 @@ use common::*;
 use operator::net::NetError;
 use protocol::Header;
 use protocol::operator_to_telerobot as o2t;
+use protocol::telerobot_to_operator::Datagram;
 use protocol::telerobot_to_operator::{self as t2o, CloudFrame, Measurement, Welcome};
-use telerobot::net::Datagram;
 use transport::framing;
 use transport::{Identity, OperatorPins};
 

@@ -30,5 +30,20 @@ pub struct Header {
     pub echo_hold_ns: u32,
 }
 
+impl Header {
+    /// A header that only says when its content was sampled: what a node fills in. The endpoint's
+    /// [`crate::session::Session`] stamps the rest ([`crate::session::Session::stamp`]) just
+    /// before the datagram is encoded; `seq` 0 is never sent.
+    pub const fn unstamped(sample_time_ns: i64) -> Header {
+        Header {
+            seq: 0,
+            sample_time_ns,
+            send_time_ns: 0,
+            echo_seq: NO_ECHO,
+            echo_hold_ns: 0,
+        }
+    }
+}
+
 /// The `echo_seq` of a header sent before anything was received from the peer.
 pub const NO_ECHO: u64 = 0;

@@ -65,6 +65,13 @@ impl Session {
         }
     }
 
+    /// Stamps `header` for a datagram sent at `now_ns`: sequence number, send time and echo, as
+    /// [`Session::next_header`] gives them; the content's `sample_time_ns` is kept. The one place
+    /// headers are filled, by the daemons' network tasks and the in-process harness alike.
+    pub fn stamp(&mut self, header: &mut Header, now_ns: i64) {
+        *header = self.next_header(header.sample_time_ns, now_ns);
+    }
+
     /// Takes in the header of a datagram received at `now_ns` (our clock). Use the datagram only
     /// if the answer [`Arrival::is_accepted`] (but see [`LatestSeq`] for per-kind use).
     pub fn on_receive(&mut self, header: &Header, now_ns: i64) -> Arrival {
@@ -353,6 +360,22 @@ mod tests {
             !b.is_stale(i64::MIN, 100 * MS),
             "clock going backwards is not staleness"
         );
+    }
+
+    #[test]
+    fn stamping_keeps_the_sample_time_and_fills_the_rest() {
+        let (mut a, mut b) = (Session::new(), Session::new());
+        let mut h = Header::unstamped(7 * MS);
+        assert_eq!((h.seq, h.send_time_ns), (0, 0));
+        a.stamp(&mut h, 9 * MS);
+        assert_eq!(
+            (h.seq, h.sample_time_ns, h.send_time_ns),
+            (1, 7 * MS, 9 * MS)
+        );
+        assert!(b.on_receive(&h, 10 * MS).is_accepted());
+        let mut reply = Header::unstamped(0);
+        b.stamp(&mut reply, 12 * MS);
+        assert_eq!((reply.echo_seq, reply.echo_hold_ns), (1, 2 * MS as u32));
     }
 
     #[test]

@@ -21,6 +21,7 @@ use crate::codec::{self, Direction};
 use crate::finite::{self, CheckFinite, NonFinite};
 use crate::header::Header;
 pub use crate::model::{ModelStructure, ModelTerms, ParameterSet};
+use crate::sequence::{Arrival, LatestSeq};
 
 /// Everything the telerobot sends. The variant order is part of the wire format.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -240,6 +241,102 @@ pub struct Pong {
     pub t2_ns: i64,
     /// When the telerobot sent this answer [ns, telerobot clock].
     pub t3_ns: i64,
+}
+
+/// The datagrams the telerobot node emits: the [`Message`] kinds that hold no heap data, so the
+/// real-time loop can queue one without allocating. Encoded exactly as the matching [`Message`]
+/// variant ([`encode_datagram_into`]), so the receiver decodes a [`Message`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Datagram {
+    /// The current environment model.
+    Parameters(Parameters),
+    /// The contact state for a command.
+    Contact(Contact),
+    /// The remote model's mass state.
+    StateSync(StateSync),
+    /// What the robot measured.
+    Measurement(Measurement),
+}
+
+impl Datagram {
+    /// The header (its `sample_time_ns` set by the node; the rest stamped by the session).
+    pub fn header(&self) -> &Header {
+        match self {
+            Datagram::Parameters(m) => &m.header,
+            Datagram::Contact(m) => &m.header,
+            Datagram::StateSync(m) => &m.header,
+            Datagram::Measurement(m) => &m.header,
+        }
+    }
+
+    /// The header, to stamp.
+    pub fn header_mut(&mut self) -> &mut Header {
+        match self {
+            Datagram::Parameters(m) => &mut m.header,
+            Datagram::Contact(m) => &mut m.header,
+            Datagram::StateSync(m) => &mut m.header,
+            Datagram::Measurement(m) => &mut m.header,
+        }
+    }
+}
+
+impl From<Datagram> for Message {
+    fn from(d: Datagram) -> Message {
+        match d {
+            Datagram::Parameters(m) => Message::Parameters(m),
+            Datagram::Contact(m) => Message::Contact(m),
+            Datagram::StateSync(m) => Message::StateSync(m),
+            Datagram::Measurement(m) => Message::Measurement(m),
+        }
+    }
+}
+
+/// Serialised as the [`Message`] variant of the same name and index (the wire format's).
+impl Serialize for Datagram {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Datagram::Parameters(m) => s.serialize_newtype_variant("Message", 2, "Parameters", m),
+            Datagram::Contact(m) => s.serialize_newtype_variant("Message", 3, "Contact", m),
+            Datagram::StateSync(m) => s.serialize_newtype_variant("Message", 4, "StateSync", m),
+            Datagram::Measurement(m) => s.serialize_newtype_variant("Message", 5, "Measurement", m),
+        }
+    }
+}
+
+/// Encodes a datagram into `buf` (cleared first): the same bytes as [`encode_into`] of the
+/// matching [`Message`], without building one.
+pub fn encode_datagram_into(datagram: &Datagram, buf: &mut Vec<u8>) {
+    codec::encode_into(datagram, buf);
+}
+
+/// The operator's rule for which of the telerobot's datagrams it uses, applied by its network
+/// task and by the in-process harness alike: a datagram the session saw for the first time
+/// ([`Arrival::Newer`] or [`Arrival::Late`]: duplicates, implausible and too old ones never are),
+/// and, for the latest-value kinds (`Parameters`, `Contact`, `StateSync`), only if it is the
+/// newest of its kind — a `Contact` reordered behind a newer `Parameters` is late for the
+/// direction yet still the newest `Contact`. Messages without a header (clouds, `Pong`, the
+/// handshake) are not the session's business and are always admitted here.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Admission {
+    latest: [LatestSeq; 3],
+}
+
+impl Admission {
+    /// Whether to use `message`, whose header the session judged `arrival`.
+    pub fn admit(&mut self, message: &Message, arrival: Arrival) -> bool {
+        let first_time = matches!(arrival, Arrival::Newer { .. } | Arrival::Late);
+        let kind = match message {
+            Message::Parameters(_) => 0,
+            Message::Contact(_) => 1,
+            Message::StateSync(_) => 2,
+            Message::Measurement(_) => return first_time,
+            Message::Welcome(_) | Message::Refused(_) | Message::Cloud(_) | Message::Pong(_) => {
+                return true;
+            }
+        };
+        let seq = message.header().map_or(0, |h| h.seq);
+        first_time && self.latest[kind].admit(seq)
+    }
 }
 
 impl Message {

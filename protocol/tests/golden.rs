@@ -78,3 +78,26 @@ fn every_kind_is_pinned() {
     assert_eq!(operator_samples().len(), OPERATOR.len());
     assert_eq!(telerobot_samples().len(), TELEROBOT.len());
 }
+
+/// The telerobot node's datagrams are encoded without building a `Message`, to the same pinned
+/// bytes.
+#[test]
+fn datagrams_encode_to_the_pinned_bytes_of_their_message() {
+    let mut buf = Vec::new();
+    let mut seen = 0;
+    for (msg, golden) in telerobot_samples().iter().zip(TELEROBOT) {
+        let datagram = match msg.clone() {
+            t2o::Message::Parameters(m) => t2o::Datagram::Parameters(m),
+            t2o::Message::Contact(m) => t2o::Datagram::Contact(m),
+            t2o::Message::StateSync(m) => t2o::Datagram::StateSync(m),
+            t2o::Message::Measurement(m) => t2o::Datagram::Measurement(m),
+            _ => continue,
+        };
+        t2o::encode_datagram_into(&datagram, &mut buf);
+        assert_eq!(hex(&buf), golden, "{}", msg.kind());
+        assert_eq!(&t2o::Message::from(datagram), msg);
+        assert_eq!(datagram.header(), msg.header().unwrap());
+        seen += 1;
+    }
+    assert_eq!(seen, 4, "every datagram kind");
+}

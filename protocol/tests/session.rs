@@ -96,3 +96,51 @@ fn a_scripted_lossy_link_gives_exact_rtt_and_counts() {
     let s = op.stats();
     assert_eq!((s.gaps, s.late, s.duplicates, s.lost()), (137, 136, 0, 1));
 }
+
+/// The operator's admission: the latest-value kinds are used only when newest of their kind,
+/// measurements whenever first seen, nothing twice.
+#[test]
+fn admission_keeps_the_newest_of_each_kind_and_every_first_measurement() {
+    use protocol::Header;
+    use protocol::telerobot_to_operator::{Admission, ContactState, Message};
+    let header = |seq| Header {
+        seq,
+        ..Header::unstamped(0)
+    };
+    let contact = |seq| {
+        Message::Contact(protocol::telerobot_to_operator::Contact {
+            header: header(seq),
+            command_sample_time_ns: 0,
+            state: ContactState::Free,
+            proxy_position_m: [0.0; 3],
+            normal: None,
+            frame: None,
+            surface_point_m: None,
+            penetration_m: None,
+        })
+    };
+    let measurement = |seq| {
+        let Some(Message::Measurement(m)) = common::telerobot_samples()
+            .into_iter()
+            .find(|m| matches!(m, Message::Measurement(_)))
+        else {
+            unreachable!("the samples hold a measurement")
+        };
+        Message::Measurement(protocol::telerobot_to_operator::Measurement {
+            header: header(seq),
+            ..m
+        })
+    };
+    let (mut session, mut admission) = (Session::new(), Admission::default());
+    let mut admit = |m: &Message| admission.admit(m, session.on_receive(m.header().unwrap(), 0));
+    assert!(admit(&contact(5)));
+    assert!(!admit(&contact(5)), "a duplicate");
+    assert!(
+        !admit(&contact(4)),
+        "late and older than the newest contact"
+    );
+    assert!(admit(&measurement(3)), "late for the direction, first seen");
+    assert!(!admit(&measurement(3)), "a duplicate measurement");
+    assert!(admit(&contact(6)));
+    assert!(!admit(&contact(u64::MAX)), "implausibly far ahead");
+}

@@ -16,6 +16,7 @@
 //! read the files). Time and randomness are arguments: the same seed gives the same bits. The
 //! estimation, rendering and contact logic is `mmt`'s; the nodes are `node`'s.
 
+pub mod bridge;
 pub mod camera;
 pub mod friction;
 pub mod noise;
@@ -26,6 +27,7 @@ pub mod trajectory;
 pub mod workload;
 pub mod world;
 
+pub use bridge::SimBridge;
 pub use friction::{Karnopp, Phase};
 pub use noise::{Measurement, SensorNoise, Sensors};
 pub use object::{FrictionStats, SimConfig, SimError, SimSample, SlidingObjectSim};

@@ -20,6 +20,7 @@ use crate::{Measurement, Sensors, SimConfig, SimError, SlidingObjectSim};
 use mmt::contact::SurfaceFrame;
 use mmt::model::force_on_tool;
 use mmt::vec3;
+use node::RobotSample;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
@@ -27,26 +28,15 @@ use rand_pcg::Pcg64;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct WorldSample {
     /// What the robot's sensors read.
-    pub measured: Sample3,
+    pub measured: RobotSample,
     /// The truth.
-    pub truth: Sample3,
+    pub truth: RobotSample,
     /// The tool is below the surface.
     pub in_contact: bool,
     /// How far the object has slid along `t1`, `t2` since the start [m].
     pub object_offset_m: [f64; 2],
     /// Contact deflection `δ = x − L − x_m` and mass velocity of each tangential axis (truth).
     pub tangential_state: [(f64, f64); 2],
-}
-
-/// Position [m], velocity [m/s] and force on the tool [N], world frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Sample3 {
-    /// Position [m].
-    pub position_m: [f64; 3],
-    /// Velocity [m/s].
-    pub velocity_m_per_s: [f64; 3],
-    /// Force on the tool [N].
-    pub force_n: [f64; 3],
 }
 
 enum Tangential {
@@ -223,17 +213,17 @@ impl World {
         self.origin
     }
 
-    fn to_world(&self, local: &[Measurement; 3]) -> Sample3 {
+    fn to_world(&self, local: &[Measurement; 3]) -> RobotSample {
         let axes = [self.frame.tangent1, self.frame.tangent2, self.frame.normal];
         let combine = |get: &dyn Fn(&Measurement) -> f64, offset: [f64; 3]| {
             (0..3).fold(offset, |acc, i| {
                 vec3::add(acc, vec3::scale(axes[i], get(&local[i])))
             })
         };
-        Sample3 {
+        RobotSample {
             position_m: combine(&|m| m.position_m, self.origin),
             velocity_m_per_s: combine(&|m| m.velocity_m_per_s, [0.0; 3]),
-            force_n: combine(&|m| m.force_n, [0.0; 3]),
+            force_on_tool_n: combine(&|m| m.force_n, [0.0; 3]),
         }
     }
 }

@@ -16,9 +16,8 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use mmt::cloud::CloudFrame;
 use mmt::contact::CloudIndex;
-use protocol::telerobot_to_operator as wire;
+use node::cloud_to_wire;
 use rt::Shutdown;
 use sim::camera::Camera;
 use sim::world::World;
@@ -111,7 +110,7 @@ fn run(
                         kept.pop_front();
                     }
                     feed.index.push((frame_id, index));
-                    link.send_cloud(Box::new(to_wire(frame_id, frame)));
+                    link.send_cloud(Box::new(cloud_to_wire(frame_id, frame)));
                     feed.frames.fetch_add(1, Relaxed);
                 }
                 Err(_) => {
@@ -123,17 +122,5 @@ fn run(
                 feed.rejected.fetch_add(1, Relaxed);
             }
         }
-    }
-}
-
-/// The wire form of a frame.
-fn to_wire(frame_id: u64, frame: CloudFrame) -> wire::CloudFrame {
-    let pose = *frame.sensor_pose();
-    wire::CloudFrame {
-        frame_id,
-        timestamp_ns: frame.timestamp_ns(),
-        sensor_position_m: pose.translation_m,
-        sensor_orientation_xyzw: pose.quaternion_xyzw(),
-        points: frame.into_points(),
     }
 }

@@ -17,15 +17,13 @@
 
 use std::sync::Arc;
 
-use node::NodeSettings;
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use protocol::telerobot_to_operator::Message;
+use node::{RobotBridge, TelerobotSettings};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
-use crate::bridge::RobotBridge;
 use crate::camera::{CameraFeed, CameraPose};
-use crate::net::{Datagram, TelerobotLink};
+use crate::net::TelerobotLink;
 
 /// Ticks between two [`LoopSnapshot`]s.
 const SNAPSHOT_EVERY: u64 = 10;
@@ -71,7 +69,7 @@ impl Default for Spares {
 /// What the loop needs.
 pub(crate) struct ControlLoop {
     pub(crate) node: Box<TelerobotNode>,
-    pub(crate) settings: NodeSettings,
+    pub(crate) settings: TelerobotSettings,
     pub(crate) bridge: Box<dyn RobotBridge>,
     pub(crate) link: TelerobotLink,
     pub(crate) camera: Arc<CameraFeed>,
@@ -136,23 +134,15 @@ impl ControlLoop {
         self.camera.pose.push(CameraPose {
             now_ns: now,
             tool_m: sample.tool_m,
-            object_offset_m: sample.object_offset_m,
+            object_offset_m: sample.object_slide_m,
         });
         let connected = self.link.status().connected();
-        let messages = self
+        let datagrams = self
             .node
-            .step(now, target.command_sample_time_ns, &sample.measured, None);
+            .step(now, target.command_sample_time_ns, &sample.measured);
         if connected {
-            for m in messages {
-                let datagram = match m {
-                    Message::Parameters(p) => Datagram::Parameters(*p),
-                    Message::Contact(c) => Datagram::Contact(*c),
-                    Message::StateSync(s) => Datagram::StateSync(*s),
-                    Message::Measurement(m) => Datagram::Measurement(*m),
-                    // Clouds go from the camera thread; the node gets no frame here.
-                    _ => continue,
-                };
-                self.link.send(datagram);
+            for d in datagrams {
+                self.link.send(*d);
             }
         }
         state.tick = tick.index;

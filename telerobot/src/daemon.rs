@@ -18,8 +18,8 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
+use node::TelerobotSettings;
 use node::telerobot::TelerobotNode;
-use node::{NodeSettings, structure_to_wire};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
@@ -30,7 +30,6 @@ use sim::scene::{CloudKind, Scene};
 use sim::world::World;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
-use crate::bridge::SimBridge;
 use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
 use crate::net::{self, NetConfig, TelerobotLink};
@@ -66,9 +65,9 @@ pub struct RunConfig {
 }
 
 impl RunConfig {
-    /// The `Welcome`'s scene summary ([`scene_summary`]).
+    /// The `Welcome`'s scene summary ([`Scene::summary`]).
     pub fn scene_summary(&self) -> SceneSummary {
-        scene_summary(&self.scene)
+        self.scene.summary()
     }
 
     /// The server's configuration.
@@ -90,19 +89,6 @@ impl RunConfig {
     pub fn default_start(scene: &Scene) -> [f64; 3] {
         let s = &scene.surface;
         std::array::from_fn(|i| s.point_m[i] + 0.01 * s.normal[i])
-    }
-}
-
-/// The `Welcome`'s summary of `scene`: model structures, rates and what the model leaves out.
-pub fn scene_summary(s: &Scene) -> SceneSummary {
-    SceneSummary {
-        name: s.name.clone(),
-        normal: structure_to_wire(s.model.normal_structure()),
-        tangential: structure_to_wire(s.model.tangential_structure()),
-        control_rate_hz: s.rates.control_hz,
-        cloud_rate_hz: (s.cloud.source != CloudKind::None).then_some(s.cloud.rate_hz),
-        left_out: s.left_out(),
-        proxy_radii_m: [s.proxy.r1_m, s.proxy.r2_m, s.proxy.r3_m],
     }
 }
 
@@ -204,10 +190,10 @@ struct Housekeeping {
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let settings = NodeSettings::from_scene(&config.scene);
+        let settings = config.scene.telerobot_settings();
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge = Box::new(SimBridge::new(&config.scene, start, config.seed)?);
+        let bridge = Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -420,7 +406,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Summary, DaemonError
 
 /// The housekeeping thread's state.
 struct Keeper {
-    settings: NodeSettings,
+    settings: TelerobotSettings,
     spares: Arc<Spares>,
     snapshots: Arc<Mailbox<LoopSnapshot>>,
     shared: Arc<Housekeeping>,

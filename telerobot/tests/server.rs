@@ -8,12 +8,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use protocol::operator_to_telerobot::{self as o2t, Command, Hello, Ping};
+use protocol::telerobot_to_operator::Datagram;
 use protocol::telerobot_to_operator::{
     self as t2o, Contact, ContactState, ModelStructure, Refusal, SceneSummary,
 };
 use protocol::{Header, PROTOCOL_VERSION};
 use rt::monotonic_ns;
-use telerobot::net::{self, Datagram, NetConfig, TelerobotLink};
+use telerobot::net::{self, NetConfig, TelerobotLink};
 use tokio::sync::oneshot;
 use transport::endpoint::{CertificateFailure, certificate_failure};
 use transport::framing;

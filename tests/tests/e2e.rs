@@ -342,7 +342,7 @@ fn a_version_mismatch_is_refused_naming_both_versions() {
 
 /// The exp-1 scene's summary, as the daemon sends it.
 fn telerobot_summary() -> t2o::SceneSummary {
-    telerobot::daemon::scene_summary(&sim::scene::Scene::exp1())
+    sim::scene::Scene::exp1().summary()
 }
 
 #[test]

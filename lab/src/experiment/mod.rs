@@ -206,6 +206,9 @@ pub enum ExperimentError {
     /// The cloud source.
     #[error("cloud: {0}")]
     Cloud(String),
+    /// The operator's settings from the scene's `Welcome`.
+    #[error("operator settings: {0}")]
+    Settings(String),
 }
 
 #[cfg(test)]

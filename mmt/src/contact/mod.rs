@@ -73,3 +73,19 @@ pub struct ContactOutput {
     /// Points within `r3` of the new position (the support of `normal` and `surface_point_m`).
     pub points_used: usize,
 }
+
+impl ContactOutput {
+    /// Free space with the proxy at `proxy_m`: no surface within reach, nothing defined.
+    pub fn free(proxy_m: [f64; 3]) -> ContactOutput {
+        ContactOutput {
+            state: ContactState::Free,
+            step_state: ContactState::Free,
+            proxy_m,
+            normal: None,
+            frame: None,
+            penetration_m: None,
+            surface_point_m: None,
+            points_used: 0,
+        }
+    }
+}

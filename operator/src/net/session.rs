@@ -4,12 +4,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bytes::Bytes;
-use protocol::Header;
 use protocol::clock::ClockOffsetEstimator;
 use protocol::handshake::{HandshakeError, accept_welcome};
 use protocol::operator_to_telerobot::{self as o2t, Hello};
-use protocol::session::{Arrival, LatestSeq};
-use protocol::telerobot_to_operator::{self as t2o, CloudFrame};
+use protocol::telerobot_to_operator::{self as t2o, Admission, CloudFrame};
 use quinn::{Connection, ConnectionError, ReadError, SendStream, WriteError};
 use rt::monotonic_ns;
 use tokio::sync::{mpsc, watch};
@@ -17,7 +15,7 @@ use tokio::task::JoinSet;
 use tokio::time::MissedTickBehavior;
 use transport::endpoint::{CertificateFailure, certificate_failure, describe_close};
 use transport::framing::{self, FrameError};
-use transport::{CloseCode, DatagramLink, Mailbox, Received, SERVER_NAME, TelerobotPin};
+use transport::{CloseCode, DatagramLink, Received, SERVER_NAME, TelerobotPin};
 
 use super::link::Shared;
 use super::{NetConfig, NetError, NetIo};
@@ -159,7 +157,7 @@ impl Client<'_> {
         let mut state = Incoming {
             link: DatagramLink::new(Arc::clone(&shared.stats)),
             clock: ClockOffsetEstimator::new(),
-            seqs: [LatestSeq::default(); 3],
+            admission: Admission::default(),
             newest_cloud: None,
             shared: Arc::clone(&shared),
             session,
@@ -231,8 +229,8 @@ async fn say_bye(connection: &Connection, control: &mut SendStream) {
 struct Incoming {
     link: DatagramLink,
     clock: ClockOffsetEstimator,
-    /// Latest admitted `seq` of `Parameters`, `Contact`, `StateSync`.
-    seqs: [LatestSeq; 3],
+    /// Which datagrams to use (the harness applies the same rule).
+    admission: Admission,
     newest_cloud: Option<u64>,
     shared: Arc<Shared>,
     session: u64,
@@ -251,39 +249,37 @@ impl Incoming {
                         .set_clock(best.map(|b| b.offset_ns), best.map(|b| b.delay_ns));
                 }
             }
-            Ok(t2o::Message::Parameters(m)) => self.latest(0, m.header, m, &shared.parameters, now),
-            Ok(t2o::Message::Contact(m)) => self.latest(1, m.header, m, &shared.contact, now),
-            Ok(t2o::Message::StateSync(m)) => self.latest(2, m.header, m, &shared.state_sync, now),
-            Ok(t2o::Message::Measurement(m)) => {
-                // Queued for the report: reordered ones still count, repeats do not.
-                if matches!(
-                    self.link.on_header(&m.header, now),
-                    Arrival::Newer { .. } | Arrival::Late
-                ) {
-                    shared.measurements.push(self.received(m, now));
+            Ok(
+                message @ (t2o::Message::Parameters(_)
+                | t2o::Message::Contact(_)
+                | t2o::Message::StateSync(_)
+                | t2o::Message::Measurement(_)),
+            ) => {
+                // Headers are on every datagram kind matched here.
+                let header = message.header().copied().unwrap_or_default();
+                let arrival = self.link.on_header(&header, now);
+                if !self.admission.admit(&message, arrival) {
+                    return;
+                }
+                // Latest-value slots, except measurements: queued for the report.
+                match message {
+                    t2o::Message::Parameters(m) => {
+                        shared.parameters.push(self.received(m, now));
+                    }
+                    t2o::Message::Contact(m) => {
+                        shared.contact.push(self.received(m, now));
+                    }
+                    t2o::Message::StateSync(m) => {
+                        shared.state_sync.push(self.received(m, now));
+                    }
+                    t2o::Message::Measurement(m) => {
+                        shared.measurements.push(self.received(m, now));
+                    }
+                    _ => {}
                 }
             }
             Ok(t2o::Message::Welcome(_) | t2o::Message::Refused(_) | t2o::Message::Cloud(_))
             | Err(_) => shared.stats.count_garbage(),
-        }
-    }
-
-    /// Delivers a latest-value kind if it is the newest of its kind.
-    fn latest<T>(
-        &mut self,
-        kind: usize,
-        header: Header,
-        message: T,
-        slot: &Mailbox<Received<T>>,
-        now: i64,
-    ) {
-        // Late for the direction can still be the newest of its kind; duplicates, implausible
-        // jumps and datagrams beyond the window never are.
-        let arrival = self.link.on_header(&header, now);
-        if matches!(arrival, Arrival::Newer { .. } | Arrival::Late)
-            && self.seqs[kind].admit(header.seq)
-        {
-            slot.push(self.received(message, now));
         }
     }
 

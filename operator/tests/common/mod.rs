@@ -13,9 +13,10 @@ use std::time::Duration;
 use operator::net::{self as op_net, NetError, OperatorLink};
 use protocol::Header;
 use protocol::operator_to_telerobot::Command;
+use protocol::telerobot_to_operator::Datagram;
 use protocol::telerobot_to_operator::{Contact, ContactState, ModelStructure, SceneSummary};
 use rt::monotonic_ns;
-use telerobot::net::{self as tr_net, Datagram, TelerobotLink};
+use telerobot::net::{self as tr_net, TelerobotLink};
 use tokio::sync::oneshot;
 use transport::Identity;
 

@@ -40,6 +40,7 @@
 //! preset = "franka-like"      # franka-like | clean
 //! ```
 
+mod settings;
 mod validate;
 
 pub use validate::SceneError;

@@ -5,11 +5,8 @@ use std::io;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 
-use protocol::Header;
 use protocol::operator_to_telerobot::Command;
-use protocol::telerobot_to_operator::{
-    CloudFrame, Contact, Measurement, Message, Parameters, StateSync,
-};
+use protocol::telerobot_to_operator::{CloudFrame, Datagram};
 use transport::handoff::BellListener;
 use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received};
 
@@ -21,45 +18,6 @@ pub const DEFAULT_OUTBOX_CAPACITY: usize = 64;
 /// and hands **every** command to the node's playout buffer (which orders reordered datagrams and
 /// drops stale ones), so a queue, not a latest-value slot; a loop stalled longer loses the oldest.
 pub const COMMAND_QUEUE_CAPACITY: usize = 64;
-
-/// A datagram the telerobot loop sends: the `protocol` datagram kinds, none of which holds heap
-/// data, so pushing one never allocates.
-///
-/// The loop fills the content and `header.sample_time_ns`; the network task overwrites the rest
-/// of the header (sequence number, send time, echo) when it sends.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Datagram {
-    /// The current environment model.
-    Parameters(Parameters),
-    /// The contact state for a command.
-    Contact(Contact),
-    /// The remote model's mass state.
-    StateSync(StateSync),
-    /// What the robot measured.
-    Measurement(Measurement),
-}
-
-impl Datagram {
-    /// The header the network task stamps.
-    pub(crate) fn header_mut(&mut self) -> &mut Header {
-        match self {
-            Datagram::Parameters(m) => &mut m.header,
-            Datagram::Contact(m) => &mut m.header,
-            Datagram::StateSync(m) => &mut m.header,
-            Datagram::Measurement(m) => &mut m.header,
-        }
-    }
-
-    /// As a protocol message (a copy; no allocation).
-    pub(crate) fn into_message(self) -> Message {
-        match self {
-            Datagram::Parameters(m) => Message::Parameters(m),
-            Datagram::Contact(m) => Message::Contact(m),
-            Datagram::StateSync(m) => Message::StateSync(m),
-            Datagram::Measurement(m) => Message::Measurement(m),
-        }
-    }
-}
 
 /// Who is in control, for the loop and the report. Atomics except the name.
 #[derive(Debug, Default)]

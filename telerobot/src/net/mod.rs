@@ -35,8 +35,7 @@ use transport::handoff::BellListener;
 use transport::{CloseCode, EndpointError, Identity, LinkTuning, OperatorPins};
 
 pub use link::{
-    COMMAND_QUEUE_CAPACITY, DEFAULT_OUTBOX_CAPACITY, Datagram, NetIo, SessionStatus, TelerobotLink,
-    link,
+    COMMAND_QUEUE_CAPACITY, DEFAULT_OUTBOX_CAPACITY, NetIo, SessionStatus, TelerobotLink, link,
 };
 
 /// Everything the server needs.

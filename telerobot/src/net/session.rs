@@ -156,8 +156,7 @@ async fn pump(
                 }
                 while let Some(mut datagram) = shared.outbox.mailbox().take() {
                     link.stamp(datagram.header_mut(), monotonic_ns());
-                    let message = datagram.into_message();
-                    link.send(connection, |buf| t2o::encode_into(&message, buf));
+                    link.send(connection, |buf| t2o::encode_datagram_into(&datagram, buf));
                 }
             },
             rung = cloud_bell.wait() => {

@@ -1,9 +1,12 @@
-//! Node-level tests: state sync.
+//! Node-level tests: state sync, holding when commands stop.
 
-use super::operator::{OperatorConfig, OperatorNode};
-use super::{NodeSettings, surface_frame_to_wire};
+#![allow(clippy::unwrap_used)]
+
 use mmt::contact::SurfaceFrame;
 use mmt::model::Physical;
+use node::operator::{OperatorConfig, OperatorNode};
+use node::telerobot::{CommandSample, TelerobotNode};
+use node::{OperatorSettings, surface_frame_to_wire};
 use protocol::Header;
 use protocol::telerobot_to_operator::{
     AxisState, Contact, ContactState, Message, ModelTerms, ParameterSet, Parameters, StateSync,
@@ -50,7 +53,7 @@ struct Drift {
 fn contact_run(plan: Plan) -> Drift {
     let sync = plan.sync;
     let scene = Scene::exp1();
-    let settings = NodeSettings::from_scene(&scene);
+    let settings = OperatorSettings::from_welcome(&scene.summary()).unwrap();
     let config = OperatorConfig {
         local_contact: false,
         state_sync: sync,
@@ -224,9 +227,8 @@ fn late_sync_replay_equals_an_on_time_sync() {
 /// the robot is, and follows again when commands return.
 #[test]
 fn the_robot_holds_after_50_ms_without_commands() {
-    use super::telerobot::{CommandSample, TelerobotNode};
     const MS: i64 = 1_000_000;
-    let settings = NodeSettings::from_scene(&Scene::exp1());
+    let settings = Scene::exp1().telerobot_settings();
     assert_eq!(settings.command_timeout_ns, 50 * MS);
     let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
     let command = |t: i64, y: f64| CommandSample {

@@ -1,0 +1,81 @@
+//! The simulated world as a robot bridge (`node::RobotBridge`, `DESIGN.md` §5): the robot
+//! tracks the commanded position exactly, as in the thesis's set-up 1, and its sensors read
+//! through the scene's noise model.
+
+use node::{BridgeSample, RobotBridge, Target};
+
+use crate::SimError;
+use crate::scene::Scene;
+use crate::world::{World, WorldSample};
+
+/// The scene's simulated world as the robot.
+pub struct SimBridge {
+    world: World,
+    tool_m: [f64; 3],
+}
+
+impl SimBridge {
+    /// The world of `scene` with the tool at rest at `tool_m`; sensor noise seeded from `seed`.
+    pub fn new(scene: &Scene, tool_m: [f64; 3], seed: u64) -> Result<SimBridge, SimError> {
+        Ok(SimBridge {
+            world: World::new(scene, tool_m, seed)?,
+            tool_m,
+        })
+    }
+}
+
+impl SimBridge {
+    /// One tick of the world with everything it knows (the truth too): what the in-process
+    /// harness records; [`RobotBridge::step`] is this, as a robot would report it.
+    pub fn step_world(&mut self, target: &Target) -> WorldSample {
+        let s = self.world.step(target.position_m, target.velocity_m_per_s);
+        self.tool_m = s.truth.position_m;
+        s
+    }
+
+    /// The world (its surface frame, for the camera and the reports).
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+}
+
+impl RobotBridge for SimBridge {
+    fn tool_m(&self) -> [f64; 3] {
+        self.tool_m
+    }
+
+    fn step(&mut self, target: &Target) -> BridgeSample {
+        let s = self.step_world(target);
+        BridgeSample {
+            measured: s.measured,
+            tool_m: s.truth.position_m,
+            object_slide_m: s.object_offset_m,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_simulated_robot_goes_where_it_is_told_and_feels_the_table() {
+        let scene = Scene::exp1();
+        let mut bridge = SimBridge::new(&scene, [0.0, 0.0, 0.01], 1).unwrap();
+        let target = |z: f64| Target {
+            position_m: [0.0, 0.0, z],
+            velocity_m_per_s: [0.0; 3],
+            command_sample_time_ns: 0,
+            holding: false,
+        };
+        let free = bridge.step(&target(0.01));
+        assert!(free.measured.force_on_tool_n[2].abs() < 0.2, "{free:?}");
+        let pressed = bridge.step(&target(-0.004));
+        assert_eq!(bridge.tool_m(), [0.0, 0.0, -0.004]);
+        // 4 mm into a 500 N/m contact: about 2 N pushing the tool out (+z).
+        assert!(
+            (pressed.measured.force_on_tool_n[2] - 2.0).abs() < 0.3,
+            "{pressed:?}"
+        );
+    }
+}

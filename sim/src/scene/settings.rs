@@ -1,0 +1,87 @@
+//! What a scene tells the nodes: the telerobot node's settings and the `Welcome`'s summary
+//! (from which the operator derives its own, `node::OperatorSettings::from_welcome`).
+
+use mmt::estimator::EstimatorConfig;
+use mmt::model::Structure;
+use mmt::rls::ColumnScales;
+use node::{KnownSurface, TelerobotSettings, structure_to_wire};
+use protocol::telerobot_to_operator::SceneSummary;
+
+use super::{CloudKind, Scene};
+
+impl Scene {
+    /// The telerobot node's settings: the scene's filter cut-off and forgetting, column scales
+    /// from the exp-1 excitation scaled to the scene's stiffness, the scene's proxy radii, and its
+    /// surface known in advance (for contact before the first cloud).
+    pub fn telerobot_settings(&self) -> TelerobotSettings {
+        let rate = self.rates.control_hz;
+        let estimator = |structure: Structure, axes: usize| {
+            let mut c = EstimatorConfig::new(structure, axes);
+            c.filter.svf.cutoff_hz = self.model.filter_cutoff_hz;
+            c.filter.svf.sample_period_s = 1.0 / rate;
+            c.forgetting = self.model.forgetting;
+            // Expected excitation: a few centimetres at about 1 Hz, force at the contact stiffness.
+            let k = self.environment.k_contact_n_per_m;
+            let x = if structure == Structure::KelvinVoigt {
+                0.004
+            } else {
+                0.03
+            };
+            c.scales = ColumnScales::for_excitation(
+                x,
+                (k * x).clamp(0.1, 100.0),
+                2.0 * std::f64::consts::PI,
+            )
+            .unwrap_or_else(ColumnScales::exp1);
+            c
+        };
+        TelerobotSettings {
+            period_ns: (1e9 / rate).round() as i64,
+            proxy: self.proxy.config(rate),
+            normal: estimator(self.model.normal_structure(), 1),
+            tangential: estimator(self.model.tangential_structure(), 2),
+            sync_period_ns: TelerobotSettings::SYNC_PERIOD_NS,
+            parameter_resend_ns: TelerobotSettings::PARAMETER_RESEND_NS,
+            command_timeout_ns: TelerobotSettings::COMMAND_TIMEOUT_NS,
+            known_surface: Some(KnownSurface {
+                point_m: self.surface.point_m,
+                normal: self.surface.normal,
+            }),
+        }
+    }
+
+    /// The `Welcome`'s summary of the scene: model structures, rates, the contact detector's
+    /// radii and what the model leaves out.
+    pub fn summary(&self) -> SceneSummary {
+        SceneSummary {
+            name: self.name.clone(),
+            normal: structure_to_wire(self.model.normal_structure()),
+            tangential: structure_to_wire(self.model.tangential_structure()),
+            control_rate_hz: self.rates.control_hz,
+            cloud_rate_hz: (self.cloud.source != CloudKind::None).then_some(self.cloud.rate_hz),
+            left_out: self.left_out(),
+            proxy_radii_m: [self.proxy.r1_m, self.proxy.r2_m, self.proxy.r3_m],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use node::OperatorSettings;
+
+    use super::*;
+
+    /// A remote operator, knowing only the `Welcome`, renders with what the telerobot's scene
+    /// says.
+    #[test]
+    fn the_welcome_gives_the_operator_the_scenes_settings() {
+        for scene in [Scene::exp1(), Scene::wall()] {
+            let telerobot = scene.telerobot_settings();
+            let remote = OperatorSettings::from_welcome(&scene.summary()).unwrap();
+            assert_eq!(remote, telerobot.operator_view(), "{}", scene.name);
+            assert_eq!(remote.proxy, scene.proxy.config(scene.rates.control_hz));
+        }
+        let wall = OperatorSettings::from_welcome(&Scene::wall().summary()).unwrap();
+        assert_eq!(wall.tangential, Structure::KelvinVoigt);
+    }
+}
