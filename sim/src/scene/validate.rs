@@ -261,6 +261,18 @@ impl Scene {
                 "in (0, 1000] Hz",
             )?;
         }
+        if let Some((name, value, expected)) = self.sensors.noise().invalid_field() {
+            let name = match name {
+                "noise.position_resolution_m" => "sensors.position_resolution_m",
+                "noise.position_sd_m" => "sensors.position_sd_m",
+                "noise.velocity_sd_m_per_s" => "sensors.velocity_sd_m_per_s",
+                "noise.force_sd_n" => "sensors.force_sd_n",
+                "noise.force_bias_n" => "sensors.force_bias_n",
+                "noise.force_bias_gradient_n_per_m" => "sensors.force_bias_gradient_n_per_m",
+                _ => "sensors.force_bias_drift_n_per_s",
+            };
+            field(name, value, false, expected)?;
+        }
         let m = &self.model;
         field(
             "model.normal",
