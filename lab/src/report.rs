@@ -93,6 +93,7 @@ fn error_panels(r: &ExperimentReport) -> Vec<Panel> {
                 .filter_map(|w| w.rms_error_pct.map(|e| (w.t_s + 0.5, e)))
                 .collect(),
             markers: true,
+            line: true,
         }],
     }]
 }
@@ -132,5 +133,6 @@ fn line(name: &str, points: Vec<(f64, f64)>) -> Line {
         name: name.into(),
         points,
         markers: false,
+        line: true,
     }
 }

@@ -11,11 +11,13 @@
 //! What it is not: no plots (those are `lab`'s), no files, no clock.
 
 mod analyse;
+mod series;
 pub mod spectrum;
 mod table;
 
 pub use analyse::{
-    BANDS, Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series,
-    ThesisFigures, Window, analyse, parameter_report,
+    BANDS, Band, ContactLatency, EstimatorReport, ExperimentReport, NodeInfo, ParameterReport,
+    RunInfo, ThesisFigures, Window, analyse, parameter_report,
 };
+pub use series::Series;
 pub use table::table;

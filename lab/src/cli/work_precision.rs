@@ -48,6 +48,7 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
                             })
                             .collect(),
                         markers: true,
+                        line: true,
                     })
                     .collect(),
             })

@@ -329,7 +329,20 @@ impl Harness {
                 p.confirmed_updates = Some(s.confirmed);
             }
         }
+        let estimators = [
+            ("normal", telerobot.normal_estimator()),
+            ("tangential", telerobot.tangential_estimator()),
+        ]
+        .into_iter()
+        .filter_map(|(axes, e)| {
+            e.map(|e| metrics::EstimatorReport {
+                axes,
+                stats: e.stats(),
+            })
+        })
+        .collect();
         let nodes = NodeInfo {
+            estimators,
             parameters,
             operator: self.operator.node.stats(),
             shadow: self.operator.shadow.stats(),

@@ -154,10 +154,46 @@ pub struct EstimatorStats {
     /// where noise on θ is amplified many times in φ). They are published like the others; the
     /// count and [`Gated::confidence`] let reports say so.
     pub low_confidence_confirmed: u64,
+    /// Back-solves rejected, by the gate that rejected them.
+    pub rejections: RejectionCounts,
+    /// Back-solves that passed every gate but not (yet) the confidence gate: withheld.
+    pub withheld: u64,
     /// New-object resets.
     pub new_objects: u64,
     /// Onset resets (policy `EveryOnset`).
     pub onset_resets: u64,
+}
+
+/// Back-solves rejected, per gate ([`GateRejection`]'s variants).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RejectionCounts {
+    /// A coefficient or parameter not finite.
+    pub non_finite: u64,
+    /// A pole of F/X not in the open left half-plane.
+    pub not_eigen_stable: u64,
+    /// Stable but not passive.
+    pub not_passive: u64,
+    /// A physical parameter negative.
+    pub not_physical: u64,
+    /// θ too far off the model manifold.
+    pub residual: u64,
+    /// The back-solve refused (e.g. the mass not identifiable).
+    pub back_solve: u64,
+}
+
+impl RejectionCounts {
+    /// Counts one rejection.
+    pub fn count(&mut self, r: &GateRejection) {
+        let c = match r {
+            GateRejection::NonFinite { .. } | GateRejection::Free => &mut self.non_finite,
+            GateRejection::NotEigenStable { .. } => &mut self.not_eigen_stable,
+            GateRejection::NotPassive { .. } => &mut self.not_passive,
+            GateRejection::NotPhysical { .. } => &mut self.not_physical,
+            GateRejection::Residual { .. } => &mut self.residual,
+            GateRejection::BackSolve(_) => &mut self.back_solve,
+        };
+        *c += 1;
+    }
 }
 
 /// An invalid estimator configuration.
@@ -370,10 +406,13 @@ impl Estimator {
                         self.stats.low_confidence_confirmed += 1;
                     }
                     update.confirmed = Some(g);
+                } else {
+                    self.stats.withheld += 1;
                 }
             }
             Err(e) => {
                 self.stats.gate_rejections += 1;
+                self.stats.rejections.count(&e);
                 self.confidence.reject();
                 update.rejection = Some(e);
             }
