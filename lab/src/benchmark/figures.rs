@@ -1,6 +1,7 @@
 //! The figures of one case, and their percentiles over a group of cases.
 
 use metrics::ExperimentReport;
+use mmt::estimator::RejectionCounts;
 use serde::Serialize;
 
 /// The figures of one run of one object (from its experiment report).
@@ -25,6 +26,8 @@ pub struct CaseFigures {
     pub back_solves: u64,
     /// Back-solves a gate rejected.
     pub gate_rejections: u64,
+    /// The same by gate (both estimators).
+    pub rejections: RejectionCounts,
     /// Gate-passing back-solves the confidence gate withheld.
     pub withheld: u64,
     /// Sets confirmed and sent.
@@ -57,6 +60,15 @@ impl CaseFigures {
                 .collect(),
             back_solves: sum(&|s| s.back_solves),
             gate_rejections: sum(&|s| s.gate_rejections),
+            rejections: RejectionCounts {
+                non_finite: sum(&|s| s.rejections.non_finite),
+                not_eigen_stable: sum(&|s| s.rejections.not_eigen_stable),
+                not_passive: sum(&|s| s.rejections.not_passive),
+                not_physical: sum(&|s| s.rejections.not_physical),
+                residual: sum(&|s| s.rejections.residual),
+                back_solve: sum(&|s| s.rejections.back_solve),
+                not_identified: sum(&|s| s.rejections.not_identified),
+            },
             withheld: sum(&|s| s.withheld),
             confirmed: sum(&|s| s.confirmed),
             low_confidence: sum(&|s| s.low_confidence_confirmed),

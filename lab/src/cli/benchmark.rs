@@ -281,6 +281,9 @@ fn targets_table(r: &BenchmarkReport) -> String {
 
 /// Error after stable and from first contact against the object's parameters: the exp-1
 /// motion (or the first motion), the first delay and preset.
+/// An object parameter plotted on a panel's horizontal axis.
+type ObjectAxis = fn(&crate::benchmark::Object) -> f64;
+
 fn error_panels(r: &BenchmarkReport) -> Vec<Panel> {
     let motion = if r.config.motions.iter().any(|m| m == "exp1") {
         "exp1".to_string()
@@ -294,7 +297,7 @@ fn error_panels(r: &BenchmarkReport) -> Vec<Panel> {
         .iter()
         .filter(|c| c.case.motion == motion && c.case.delay_ms == delay && c.case.preset == preset)
         .collect();
-    let axes: [(&str, bool, fn(&crate::benchmark::Object) -> f64); 6] = [
+    let axes: [(&str, bool, ObjectAxis); 6] = [
         ("mass m [kg]", true, |o| o.mass_kg),
         ("contact stiffness k2 [N/m]", true, |o| o.k_contact_n_per_m),
         ("contact mode [Hz]", true, |o| o.mode_hz()),
