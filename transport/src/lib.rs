@@ -16,6 +16,8 @@
 //! - [`stats`]: link counters as atomics, and the per-connection datagram bookkeeping over
 //!   `protocol::session`;
 //! - [`report`]: the report form of the link counters;
+//! - [`address`]: the daemons' `--listen` / `--connect` addresses, parsed with examples in the
+//!   error;
 //! - [`network_runtime`]: the one-worker tokio runtime of a daemon's network task.
 //!
 //! The clock every stamp is read from is [`rt::monotonic_ns`].
@@ -25,6 +27,7 @@
 //! who may connect (the telerobot's `net` module decides; this crate only enforces the pins).
 //! The daemons' network tasks (`telerobot::net`, `operator::net`) are built from these pieces.
 
+pub mod address;
 pub mod endpoint;
 pub mod framing;
 pub mod handoff;
