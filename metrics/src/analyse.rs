@@ -38,7 +38,7 @@ pub struct ContactLatency {
 }
 
 /// An error value over a window.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Window {
     /// Window start [s].
     pub t_s: f64,

@@ -11,6 +11,7 @@
 //! What it is not: no plots (those are `lab`'s), no files, no clock.
 
 mod analyse;
+mod csv;
 mod series;
 pub mod spectrum;
 mod table;
@@ -19,5 +20,6 @@ pub use analyse::{
     BANDS, Band, ContactLatency, EstimatorReport, ExperimentReport, NodeInfo, ParameterReport,
     RunInfo, ThesisFigures, Window, analyse, parameter_report,
 };
+pub use csv::{CSV_HEADER, CsvError};
 pub use series::Series;
 pub use table::table;

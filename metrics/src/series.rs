@@ -1,5 +1,5 @@
 //! What a run records: one row per operator tick, measured and rendered force aligned by the
-//! command's sample time, and its CSV form.
+//! command's sample time (its CSV form: `csv`).
 
 use node::operator::OperatorOutput;
 
@@ -136,47 +136,5 @@ impl Series {
     /// No ticks.
     pub fn is_empty(&self) -> bool {
         self.rendered.is_empty()
-    }
-}
-
-impl Series {
-    /// The series as CSV: one row per operator tick.
-    pub fn to_csv(&self) -> String {
-        use std::fmt::Write;
-        let mut out = String::with_capacity(self.len() * 200);
-        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering,true_x_n,true_y_n,true_z_n\n");
-        let b = |v: bool| if v { 1 } else { 0 };
-        for i in 0..self.len() {
-            let p = self.position[i];
-            let m = self.measured[i].map_or([f64::NAN; 3], |m| m);
-            let r = self.rendered[i];
-            let q = self.rendered_remote[i];
-            let t = self.true_force[i].map_or([f64::NAN; 3], |t| t);
-            let _ = writeln!(
-                out,
-                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{},{:.5},{:.5},{:.5}",
-                i as f64 * self.dt_s(),
-                p[0],
-                p[1],
-                p[2],
-                m[0],
-                m[1],
-                m[2],
-                r[0],
-                r[1],
-                r[2],
-                q[0],
-                q[1],
-                q[2],
-                self.contact_true[i].map_or(-1, b),
-                b(self.contact_local[i]),
-                b(self.contact_remote[i]),
-                b(self.rendering[i]),
-                t[0],
-                t[1],
-                t[2],
-            );
-        }
-        out
     }
 }
