@@ -107,20 +107,7 @@ impl SlidingMassRenderer {
         let rendered = self.adjust(&current);
         let h = self.config.step_s();
         let s = &mut self.state;
-        if in_contact && !s.in_contact {
-            s.onset = Some([x, v - s.mass_velocity_m_per_s, s.mass_position_m]);
-            s.anchor_m = anchor(s.onset, &rendered).unwrap_or(x - s.mass_position_m);
-            s.last_input = [x - s.anchor_m, v];
-        } else if in_contact && let Some(a) = anchor(s.onset, &rendered) {
-            // The parameters moved: the onset's anchor with the parameters rendered now. The
-            // last input moves with it, so the step interpolates no jump.
-            s.last_input[0] -= a - s.anchor_m;
-            s.anchor_m = a;
-        }
-        if !in_contact {
-            s.onset = None;
-        }
-        s.in_contact = in_contact;
+        place_anchor(s, x, v, in_contact, &rendered);
         let u1 = [x - s.anchor_m, v];
         let mut sys = rendered;
         if !in_contact {
@@ -247,6 +234,24 @@ impl SlidingMassRenderer {
         s.mass_position_m = smooth(s.mass_position_m, target_xm, gain);
         s.mass_velocity_m_per_s = smooth(s.mass_velocity_m_per_s, mass_velocity_m_per_s, gain);
     }
+}
+
+/// The contact bookkeeping of a rendered tick: at the onset the anchor from the onset state;
+/// in contact the onset's anchor with the parameters rendered now (the parameters moved; the
+/// last input moves with it, so the step interpolates no jump); out of contact no onset.
+fn place_anchor(s: &mut SlidingState, x: f64, v: f64, in_contact: bool, rendered: &Physical) {
+    if in_contact && !s.in_contact {
+        s.onset = Some([x, v - s.mass_velocity_m_per_s, s.mass_position_m]);
+        s.anchor_m = anchor(s.onset, rendered).unwrap_or(x - s.mass_position_m);
+        s.last_input = [x - s.anchor_m, v];
+    } else if in_contact && let Some(a) = anchor(s.onset, rendered) {
+        s.last_input[0] -= a - s.anchor_m;
+        s.anchor_m = a;
+    }
+    if !in_contact {
+        s.onset = None;
+    }
+    s.in_contact = in_contact;
 }
 
 /// Contact onset: the anchor that makes the contact force start from exactly 0,
