@@ -6,7 +6,7 @@ use mmt::model::gates::Gated;
 use mmt::vec3;
 use node::operator::{OperatorOutput, OperatorStats};
 use node::telerobot::TelerobotStats;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sim::scene::Scene;
 
 /// The time series of a run, indexed by operator tick (= command sample time / period).
@@ -180,10 +180,10 @@ pub struct Window {
 }
 
 /// Estimated against true parameters.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ParameterReport {
-    /// Axis group.
-    pub axes: &'static str,
+    /// Axis group: `normal` or `tangential`.
+    pub axes: String,
     /// `(name, true, estimated, error %)`.
     pub values: Vec<(String, f64, f64, f64)>,
     /// The back-solve's confidence in the final set: `{"kind":"low","condition":…}` when the
@@ -193,10 +193,10 @@ pub struct ParameterReport {
     pub condition: f64,
     /// Confirmed sets of this group whose back-solve reported low confidence, and all confirmed
     /// sets, when the estimator's counters are at hand (the in-process experiment).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub low_confidence_updates: Option<u64>,
     /// All confirmed sets of this group (with `low_confidence_updates`).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub confirmed_updates: Option<u64>,
 }
 
@@ -291,8 +291,9 @@ pub struct RunInfo {
     pub delay_ms: f64,
 }
 
-/// What the nodes know, for the report.
-#[derive(Clone, Debug, Default)]
+/// What the nodes know, for the report (recorded at the end of a run, so that a report computed
+/// again from a recording has it).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct NodeInfo {
     /// Estimated against true parameters.
     pub parameters: Vec<ParameterReport>,
@@ -528,7 +529,7 @@ pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<Paramet
             Params::Free => vec![],
         };
         out.push(ParameterReport {
-            axes,
+            axes: axes.to_owned(),
             values,
             confidence: latest.confidence(),
             condition: latest.condition(),

@@ -4,16 +4,14 @@ use crate::haptic::LoopEnd;
 
 fn facts() -> RunFacts {
     RunFacts {
-        experiment: "networked".into(),
-        scene: "exp1".into(),
-        left_out: Vec::new(),
-        device: "scripted:hold".into(),
-        seed: 0,
-        set_delay_ms: None,
+        run: metrics::networked::NetworkedRun {
+            experiment: "networked".into(),
+            scene: "exp1".into(),
+            device: "scripted:hold".into(),
+            period_ns: 1_000_000,
+            ..Default::default()
+        },
         truth: None,
-        start_ns: 0,
-        period_ns: 1_000_000,
-        final_offset_ns: None,
         link: LinkReport::default(),
         measurements_overwritten: 0,
         timing: TimingReport::default(),
