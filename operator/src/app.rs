@@ -25,6 +25,8 @@ use crate::net::{self, NetConfig, NetError, OperatorLink};
 use crate::report::{self, NetworkedReport, RunFacts};
 use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
 use node::{OperatorSettings, SettingsError};
+use record::RecordSink;
+use record::schema::{RunEnd, RunStart};
 
 /// Everything `operator run` needs, validated.
 #[derive(Clone, Debug)]
@@ -52,6 +54,10 @@ pub struct RunConfig {
     /// What the run knows beyond the wire (the demo): the scene's truth, the seed and the set
     /// delay.
     pub known: Option<Known>,
+    /// The recorder (`--record`, `--live`), if the run records: every tick, measurement,
+    /// message taken, cloud, link statistics and event goes to it from the helper thread, and
+    /// the run's start and end.
+    pub record: Option<RecordSink>,
 }
 
 /// What the demo knows about the telerobot.
@@ -121,6 +127,14 @@ pub struct Outcome {
     pub report: NetworkedReport,
     /// The series (for the files of `--out`).
     pub series: Series,
+    /// What the nodes knew at the end (the report's `NodeInfo`).
+    pub nodes: metrics::NodeInfo,
+    /// The newest surface frame received (the report's axes).
+    pub frame: Option<protocol::telerobot_to_operator::SurfaceFrame>,
+    /// The clock offset at the end (telerobot − operator) \[ns\].
+    pub final_offset_ns: Option<i64>,
+    /// Haptic-loop ticks run.
+    pub ticks: u64,
 }
 
 /// Runs the operator until the run's length or `shutdown`, then reports.
@@ -186,6 +200,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         std::sync::Arc::clone(&exchange),
         session,
         config.node,
+        config.record.clone(),
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;
@@ -195,6 +210,10 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     };
     let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
     let start_ns = periodic.start_ns();
+    if let Some(sink) = &config.record {
+        let start = run_start(&config, &welcome.scene, start_ns, settings.period_ns);
+        sink.send_one(start_ns, record::Message::Run(Box::new(start)));
+    }
     let timing = periodic.timing();
     let ticks = config
         .seconds
@@ -240,23 +259,80 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         tracing::warn!("the network task ended with: {e}");
     }
     let facts = RunFacts {
-        experiment: config.experiment.clone(),
-        scene: welcome.scene.name.clone(),
-        left_out: welcome.scene.left_out.clone(),
-        device: config.device.to_string(),
-        seed: config.known.as_ref().map_or(0, |k| k.seed),
-        set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+        run: metrics::networked::NetworkedRun {
+            experiment: config.experiment.clone(),
+            scene: welcome.scene.name.clone(),
+            left_out: welcome.scene.left_out.clone(),
+            device: config.device.to_string(),
+            seed: config.known.as_ref().map_or(0, |k| k.seed),
+            set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+            start_ns,
+            period_ns: settings.period_ns,
+            final_offset_ns: stats.clock_offset_ns,
+            frame: None,
+        },
         truth: config.known.as_ref().map(|k| k.scene.clone()),
-        start_ns,
-        period_ns: settings.period_ns,
-        final_offset_ns: stats.clock_offset_ns,
         link: final_link,
         measurements_overwritten: overwritten,
         timing: timing.report(),
         wall_seconds,
     };
     let (series, report) = report::build(&facts, &recording, &end);
-    Ok(Outcome { report, series })
+    let outcome = Outcome {
+        report,
+        series,
+        nodes: report::node_info(facts.truth.as_ref(), &end),
+        frame: end.frame,
+        final_offset_ns: stats.clock_offset_ns,
+        ticks: end.ticks,
+    };
+    if let Some(sink) = &config.record {
+        outcome.record_end(sink);
+    }
+    Ok(outcome)
+}
+
+/// The recording's `/run` of the operator side.
+fn run_start(
+    config: &RunConfig,
+    scene: &protocol::telerobot_to_operator::SceneSummary,
+    start_ns: i64,
+    period_ns: i64,
+) -> RunStart {
+    RunStart {
+        side: record::Side::Operator,
+        experiment: config.experiment.clone(),
+        start_ns,
+        period_ns,
+        scene_name: scene.name.clone(),
+        left_out: scene.left_out.clone(),
+        proxy_radii_m: scene.proxy_radii_m,
+        device: Some(config.device.to_string()),
+        seed: config.known.as_ref().map(|k| k.seed),
+        set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+        scene: config.known.as_ref().map(|k| k.scene.clone()),
+        config: None,
+        axes: None,
+        tool_start_m: None,
+    }
+}
+
+impl Outcome {
+    /// Records the run's end (`/run/end`): what the report needs beyond the recorded streams.
+    /// The demo records it again once it has added the telerobot's and the shim's figures; a
+    /// reader takes the last.
+    pub fn record_end(&self, sink: &RecordSink) {
+        let end = RunEnd {
+            side: record::Side::Operator,
+            ticks: self.ticks,
+            nodes: Some(self.nodes.clone()),
+            frame: self.frame.map(record::schema::FrameRec::from),
+            final_offset_ns: self.final_offset_ns,
+            counters: Some(self.report.counters()),
+            recorder_dropped: sink.dropped(),
+        };
+        sink.send_one(monotonic_ns(), record::Message::RunEnd(Box::new(end)));
+    }
 }
 
 /// Waits for the first session; returns its number.

@@ -27,7 +27,7 @@ use crate::report::ShimReport;
 use crate::safety::SafetyConfig;
 
 /// The demo's settings.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct DemoConfig {
     /// One-way delay each way \[ms\], 0 to 2000. Default 400 (the thesis's experiment 3).
     pub delay_ms: f64,
@@ -42,6 +42,8 @@ pub struct DemoConfig {
     /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
     /// operator connects to the telerobot directly: the loopback latency figure.
     pub via_shim: bool,
+    /// The recorder both sides record to (one file), if the demo records.
+    pub record: Option<record::RecordSink>,
 }
 
 impl Default for DemoConfig {
@@ -53,6 +55,7 @@ impl Default for DemoConfig {
             seed: 1,
             realtime_priority: None,
             via_shim: true,
+            record: None,
         }
     }
 }
@@ -153,6 +156,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         seed: config.seed,
         periodic,
         realtime_priority: config.realtime_priority,
+        record: config.record.clone(),
     })?;
     let shim = if config.via_shim {
         let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
@@ -201,6 +205,11 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
                 seed: config.seed,
                 delay_ms: config.delay_ms,
             }),
+            // Each camera frame is recorded once, by the telerobot.
+            record: config
+                .record
+                .as_ref()
+                .map(record::RecordSink::without_clouds),
         },
         shutdown,
     );
@@ -210,8 +219,13 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     let shim_stats = shim_stats?;
     let r = &mut outcome.report;
     r.experiment.telerobot_stats = summary.last.node;
+    outcome.nodes.telerobot = summary.last.node;
     r.telerobot = Some(summary);
     r.shim = shim_stats.as_ref().map(ShimReport::from);
+    if let Some(sink) = &config.record {
+        // Again, now with the telerobot's and the shim's figures: the reader takes the last.
+        outcome.record_end(sink);
+    }
     Ok(outcome)
 }
 

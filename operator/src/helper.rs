@@ -6,17 +6,25 @@
 //! - on a new session (a reconnect) builds a fresh operator node from the new `Welcome` and hands
 //!   it to the loop; drops the nodes the loop retired;
 //! - drains the loop's tick records and the telerobot's measurements into the recording the
-//!   report is computed from, each measurement stamped with the current clock-offset estimate.
+//!   report is computed from, each measurement stamped with the current clock-offset estimate;
+//! - with `--record`/`--live`, hands the same records, the clouds, the link statistics (10 Hz)
+//!   and the safety and device events (from the records' flags) to the recorder
+//!   ([`record::RecordSink`]): one batch per round, never waiting.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use metrics::networked::{MeasurementSample, TickSample};
 use mmt::cloud::{CloudFrame, Pose};
 use mmt::contact::CloudIndex;
 use node::operator::{OperatorConfig, OperatorNode};
-use protocol::telerobot_to_operator::Measurement;
+use record::schema::{
+    CloudRec, ContactRec, EventRec, Level, LinkRec, MeasurementRec, OperatorTick, ParametersRec,
+    SafetyFlags, StateSyncRec,
+};
+use record::{Message, RecordSink, Side, Timed};
 use rt::Shutdown;
 
 use crate::haptic::{Exchange, TickRecord};
@@ -29,25 +37,16 @@ const POLL: Duration = Duration::from_millis(2);
 const KEEP: usize = 4;
 /// Most ticks recorded: one hour at 1 kHz (about 200 MB); the report covers the first hour.
 pub const MAX_RECORDED_TICKS: usize = 3_600_000;
+/// How often the link statistics go to the recording.
+const LINK_EVERY: Duration = Duration::from_millis(100);
 
-/// A measurement as received.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeasurementRecord {
-    /// The message.
-    pub message: Measurement,
-    /// When it arrived [ns, operator clock].
-    pub received_ns: i64,
-    /// The clock-offset estimate when it was taken (telerobot − operator) \[ns\].
-    pub offset_ns: Option<i64>,
-}
-
-/// Everything recorded during a run.
+/// Everything recorded during a run, for its report.
 #[derive(Debug, Default)]
 pub struct Recording {
     /// One record per tick, in tick order (gaps where the loop skipped ticks).
-    pub ticks: Vec<TickRecord>,
-    /// Measurements in arrival order.
-    pub measurements: Vec<MeasurementRecord>,
+    pub ticks: Vec<TickSample>,
+    /// Measurements in arrival order, each with the clock-offset estimate when it was taken.
+    pub measurements: Vec<MeasurementSample>,
     /// Tick records beyond [`MAX_RECORDED_TICKS`], not kept.
     pub ticks_not_kept: u64,
     /// Cloud frames indexed, and refused (bad points).
@@ -57,12 +56,14 @@ pub struct Recording {
 }
 
 /// Starts the helper; `session` is the session of the loop's first node, `config` the operator
-/// node's settings for the nodes it builds. It stops (and returns the recording) at `stop`.
+/// node's settings for the nodes it builds, `record` the recorder, if the run records. It stops
+/// (and returns the recording) at `stop`.
 pub fn spawn(
     link: OperatorLink,
     exchange: Arc<Exchange>,
     session: u64,
     config: OperatorConfig,
+    record: Option<RecordSink>,
     stop: Shutdown,
 ) -> std::io::Result<JoinHandle<Recording>> {
     std::thread::Builder::new()
@@ -75,6 +76,13 @@ pub fn spawn(
                 config,
                 kept: VecDeque::with_capacity(KEEP + 1),
                 recording: Recording::default(),
+                record: record.map(|sink| Forward {
+                    sink,
+                    batch: Vec::new(),
+                    last: None,
+                    link_due: std::time::Instant::now(),
+                }),
+                last_position: [0.0; 3],
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
@@ -91,6 +99,18 @@ struct Helper {
     config: OperatorConfig,
     kept: VecDeque<Arc<CloudIndex>>,
     recording: Recording,
+    record: Option<Forward>,
+    /// The commanded position of the last tick (where a reconnection's node starts).
+    last_position: [f64; 3],
+}
+
+/// What goes to the recorder: this round's batch, and what the events are edges of.
+struct Forward {
+    sink: RecordSink,
+    batch: Vec<Timed>,
+    /// The previous tick's safety flags and device fault count.
+    last: Option<(SafetyFlags, u64)>,
+    link_due: std::time::Instant,
 }
 
 impl Helper {
@@ -98,23 +118,39 @@ impl Helper {
         self.cloud();
         self.sessions();
         while self.exchange.retired.take().is_some() {}
-        let r = &mut self.recording;
+        let recording = self.record.as_ref().is_some_and(|f| !f.sink.is_paused());
         while let Some(t) = self.exchange.ticks.take() {
+            self.last_position = t.position_m;
+            let r = &mut self.recording;
             if r.ticks.len() < MAX_RECORDED_TICKS {
-                r.ticks.push(t);
+                r.ticks.push(TickSample {
+                    index: t.index,
+                    position_m: t.position_m,
+                    force_n: t.force_n,
+                    in_contact: t.in_contact,
+                    rendering: t.rendering,
+                });
             } else {
                 r.ticks_not_kept += 1;
+            }
+            if let Some(f) = self.record.as_mut().filter(|_| recording) {
+                f.tick(&t);
             }
         }
         let offset_ns = self.link.stats().clock_offset_ns;
         while let Some(m) = self.link.measurement() {
+            let rec = MeasurementRec::new(m.session, &m.message, m.received_ns, offset_ns);
+            let r = &mut self.recording;
             if r.measurements.len() < MAX_RECORDED_TICKS {
-                r.measurements.push(MeasurementRecord {
-                    message: m.message,
-                    received_ns: m.received_ns,
-                    offset_ns,
-                });
+                r.measurements.push(rec.sample());
             }
+            if let Some(f) = self.record.as_mut().filter(|_| recording) {
+                f.push(m.received_ns, Message::Measurement(Box::new(rec)));
+            }
+        }
+        if let Some(f) = self.record.as_mut().filter(|_| recording) {
+            f.link(&self.link);
+            f.flush();
         }
     }
 
@@ -123,6 +159,14 @@ impl Helper {
             return;
         };
         let wire = *received.message;
+        if let Some(f) = self.record.as_mut().filter(|f| f.sink.wants_clouds()) {
+            let cloud = CloudRec {
+                frame_id: wire.frame_id,
+                timestamp_ns: wire.timestamp_ns,
+                points: Arc::new(wire.points.clone()),
+            };
+            f.push(received.received_ns, Message::Cloud(Side::Operator, cloud));
+        }
         let index = CloudFrame::new(wire.points, wire.timestamp_ns, Pose::default())
             .ok()
             .and_then(|frame| CloudIndex::build(&frame).ok());
@@ -151,11 +195,7 @@ impl Helper {
             return;
         };
         self.session = session;
-        let position = self
-            .recording
-            .ticks
-            .last()
-            .map_or([0.0; 3], |t| t.position_m);
+        let position = self.last_position;
         let node = OperatorSettings::from_welcome(&welcome.scene)
             .map_err(|e| e.to_string())
             .and_then(|s| OperatorNode::new(s, self.config, position).map_err(|e| e.to_string()));
@@ -165,8 +205,111 @@ impl Helper {
                 self.recording.reconnect_nodes += 1;
                 tracing::info!(session, scene = %welcome.scene.name,
                     "reconnected: rendering starts again with the next model");
+                if let Some(f) = &mut self.record {
+                    f.event(
+                        rt::monotonic_ns(),
+                        Level::Info,
+                        "session",
+                        format!("session {session}: reconnected to the telerobot"),
+                    );
+                }
             }
             Err(e) => tracing::error!(session, "cannot set up the operator node: {e}"),
+        }
+    }
+}
+
+impl Forward {
+    fn push(&mut self, t_ns: i64, message: Message) {
+        self.batch.push(Timed { t_ns, message });
+    }
+
+    fn event(&mut self, t_ns: i64, level: Level, source: &'static str, text: String) {
+        self.push(
+            t_ns,
+            Message::Event(EventRec {
+                level,
+                source,
+                text,
+            }),
+        );
+    }
+
+    /// One tick: its record, the messages it took, and the safety and device events it began or
+    /// ended.
+    fn tick(&mut self, t: &TickRecord) {
+        let at = t.sample_time_ns;
+        let safety = SafetyFlags {
+            bits: t.safety_bits,
+        };
+        let (last_safety, last_faults) = self.last.unwrap_or_default();
+        for (rule, on) in last_safety.edges(safety) {
+            let (level, what) = if on {
+                (Level::Warning, "acting")
+            } else {
+                (Level::Info, "no longer acting")
+            };
+            self.event(at, level, "safety", format!("{rule}: {what}"));
+        }
+        if t.device_faults > last_faults {
+            self.event(
+                at,
+                Level::Error,
+                "device",
+                format!("device fault ({} so far): forces off", t.device_faults),
+            );
+        }
+        self.last = Some((safety, t.device_faults));
+        if let Some((p, received)) = &t.parameters {
+            let rec = ParametersRec::new(t.session, p, Some(*received));
+            self.push(at, Message::Parameters(Side::Operator, Box::new(rec)));
+        }
+        if let Some((c, received)) = &t.contact {
+            let rec = ContactRec::new(t.session, c, Some(*received));
+            self.push(at, Message::Contact(Side::Operator, Box::new(rec)));
+        }
+        if let Some((s, received)) = &t.state_sync {
+            let rec = StateSyncRec::new(t.session, s, Some(*received));
+            self.push(at, Message::StateSync(Side::Operator, Box::new(rec)));
+        }
+        let tick = OperatorTick {
+            session: t.session,
+            index: t.index,
+            sample_time_ns: t.sample_time_ns,
+            started_ns: t.started_ns,
+            device_position_m: t.device_m[0],
+            device_velocity_m_per_s: t.device_m[1],
+            command_position_m: t.position_m,
+            command_velocity_m_per_s: t.velocity_m_per_s,
+            force_rendered_n: t.force_n,
+            force_device_n: t.force_device_n,
+            in_contact: t.in_contact,
+            rendering: t.rendering,
+            proxy_m: t.proxy_m,
+            safety,
+            device_faults: t.device_faults,
+            ..OperatorTick::default()
+        };
+        self.push(at, Message::OperatorTick(Box::new(tick)));
+    }
+
+    /// The link statistics, every [`LINK_EVERY`].
+    fn link(&mut self, link: &OperatorLink) {
+        if self.link_due.elapsed() < LINK_EVERY {
+            return;
+        }
+        self.link_due = std::time::Instant::now();
+        let status = link.status();
+        let rec = LinkRec::new(status.connected(), status.session(), &link.stats());
+        self.push(
+            rt::monotonic_ns(),
+            Message::Link(Side::Operator, Box::new(rec)),
+        );
+    }
+
+    fn flush(&mut self) {
+        if !self.batch.is_empty() {
+            self.sink.send(std::mem::take(&mut self.batch));
         }
     }
 }

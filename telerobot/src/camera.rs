@@ -7,7 +7,8 @@
 //! ```
 //!
 //! The thread keeps the last few indices alive itself, so the loop never drops the last reference
-//! to one (freeing a kd-tree there would be a deallocation on the real-time thread).
+//! to one (freeing a kd-tree there would be a deallocation on the real-time thread). With
+//! `--record` or `--live` it hands each frame to the recorder too.
 
 use std::collections::VecDeque;
 use std::io;
@@ -24,6 +25,8 @@ use sim::world::World;
 use transport::Mailbox;
 
 use crate::net::TelerobotLink;
+use record::schema::CloudRec;
+use record::{Message, RecordSink, Side};
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);
@@ -78,11 +81,12 @@ pub fn spawn(
     geometry: World,
     feed: Arc<CameraFeed>,
     link: TelerobotLink,
+    record: Option<RecordSink>,
     shutdown: Shutdown,
 ) -> io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("camera".to_owned())
-        .spawn(move || run(camera, &geometry, &feed, &link, &shutdown))
+        .spawn(move || run(camera, &geometry, &feed, &link, record.as_ref(), &shutdown))
 }
 
 fn run(
@@ -90,6 +94,7 @@ fn run(
     geometry: &World,
     feed: &CameraFeed,
     link: &TelerobotLink,
+    record: Option<&RecordSink>,
     shutdown: &Shutdown,
 ) {
     let mut kept: VecDeque<Arc<CloudIndex>> = VecDeque::with_capacity(KEEP + 1);
@@ -110,7 +115,16 @@ fn run(
                         kept.pop_front();
                     }
                     feed.index.push((frame_id, index));
-                    link.send_cloud(Box::new(cloud_to_wire(frame_id, frame)));
+                    let wire = cloud_to_wire(frame_id, frame);
+                    if let Some(sink) = record.filter(|s| s.wants_clouds()) {
+                        let cloud = CloudRec {
+                            frame_id,
+                            timestamp_ns: wire.timestamp_ns,
+                            points: Arc::new(wire.points.clone()),
+                        };
+                        sink.send_one(p.now_ns, Message::Cloud(Side::Telerobot, cloud));
+                    }
+                    link.send_cloud(Box::new(wire));
                     feed.frames.fetch_add(1, Relaxed);
                 }
                 Err(_) => {

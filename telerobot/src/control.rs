@@ -9,16 +9,19 @@
 //!    newest command is older than 50 ms), the bridge moves and measures;
 //! 4. the node steps with the measurement; its messages go to the network task's outbox while an
 //!    operator is connected;
-//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread.
+//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread; with `--record` or
+//!    `--live`, every tick a [`TickRecord`] too (plain values: the recording is written there).
 //!
-//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots and datagrams move
-//! through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old ones dropped, by
-//! the housekeeping thread ([`Spares`]).
+//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots, tick records and
+//! datagrams move through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old
+//! ones dropped, by the housekeeping thread ([`Spares`]).
 
 use std::sync::Arc;
 
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use node::{RobotBridge, TelerobotSettings};
+use node::{BridgeSample, RobotBridge, Target, TelerobotSettings};
+use protocol::telerobot_to_operator::{Contact, Datagram, Measurement, Parameters, StateSync};
+use record::schema::EstimatorSnapshot;
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
@@ -47,6 +50,36 @@ pub struct LoopSnapshot {
     pub stable: bool,
     /// Nodes built on the loop thread because no spare was ready (should stay 0).
     pub inline_node_builds: u64,
+}
+
+/// Tick records the housekeeping thread may lag behind by: 8 s at 1 kHz.
+pub const TICK_QUEUE: usize = 8192;
+
+/// What one tick did, for the recording: plain values (pushing one allocates nothing).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickRecord {
+    /// Tick number.
+    pub index: u64,
+    /// The tick's nominal time [ns].
+    pub now_ns: i64,
+    /// The session whose commands run.
+    pub session: u64,
+    /// Where the robot was sent.
+    pub target: Target,
+    /// What the bridge gave.
+    pub sample: BridgeSample,
+    /// Capture time of the camera frame installed this tick [ns].
+    pub cloud_captured_ns: Option<i64>,
+    /// The node's datagrams of the tick.
+    pub contact: Option<Contact>,
+    /// The measurement datagram.
+    pub measurement: Option<Measurement>,
+    /// The parameters datagram, when one was sent.
+    pub parameters: Option<Parameters>,
+    /// The state-sync datagram, when one was sent.
+    pub state_sync: Option<StateSync>,
+    /// The estimators, `[normal, tangential]`.
+    pub estimators: [Option<EstimatorSnapshot>; 2],
 }
 
 /// Fresh nodes for new sessions, and old nodes to drop, exchanged with the housekeeping thread.
@@ -78,6 +111,8 @@ pub(crate) struct ControlLoop {
     /// Command receipt − command sample time \[ns\] (one host: the uplink's one-way latency), to
     /// the housekeeping thread.
     pub(crate) command_latency: Arc<Mailbox<i64>>,
+    /// Every tick's record, to the housekeeping thread, while the run records.
+    pub(crate) records: Option<Arc<Mailbox<TickRecord>>>,
     pub(crate) shutdown: Shutdown,
 }
 
@@ -126,7 +161,9 @@ impl ControlLoop {
                 received_ns: c.received_ns,
             });
         }
+        let mut cloud_captured_ns = None;
         if let Some((frame_id, index)) = self.camera.index.take() {
+            cloud_captured_ns = Some(index.timestamp_ns());
             self.node.set_cloud(index, frame_id);
         }
         let target = self.node.target(now, self.bridge.tool_m());
@@ -144,6 +181,36 @@ impl ControlLoop {
             for d in datagrams {
                 self.link.send(*d);
             }
+        }
+        if let Some(records) = &self.records {
+            let mut record = TickRecord {
+                index: tick.index,
+                now_ns: now,
+                session: state.session,
+                target,
+                sample,
+                cloud_captured_ns,
+                contact: None,
+                measurement: None,
+                parameters: None,
+                state_sync: None,
+                estimators: [None; 2],
+            };
+            for d in self.node.datagrams() {
+                match *d {
+                    Datagram::Contact(c) => record.contact = Some(c),
+                    Datagram::Measurement(m) => record.measurement = Some(m),
+                    Datagram::Parameters(p) => record.parameters = Some(p),
+                    Datagram::StateSync(s) => record.state_sync = Some(s),
+                }
+            }
+            let [normal, tangential] = self.node.updates();
+            record.estimators = [
+                normal.zip(self.node.normal_estimator()),
+                tangential.zip(self.node.tangential_estimator()),
+            ]
+            .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
+            records.push(record);
         }
         state.tick = tick.index;
         state.now_ns = now;

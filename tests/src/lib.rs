@@ -110,6 +110,7 @@ fn telerobot_config(
             ..PeriodicConfig::default()
         },
         realtime_priority: None,
+        record: None,
     }
 }
 
@@ -159,6 +160,7 @@ pub fn operator_config(
             seed: 1,
             delay_ms: known_delay_ms,
         }),
+        record: None,
     }
 }
 

@@ -1,6 +1,6 @@
 //! `mmt experiment`: the thesis's experiments in-process.
 
-use crate::experiment::{ExperimentConfig, Kind, run};
+use crate::experiment::{ExperimentConfig, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
 use sim::scene::Scene;
@@ -51,6 +51,9 @@ pub struct ExperimentArgs {
     /// Datagrams sent ahead of their turn each way [%] (needs a delay).
     #[arg(long, default_value_t = 0.0)]
     reorder_pct: f64,
+    /// Recording and live view (on the simulated clock: faster than real time).
+    #[command(flatten)]
+    record: record::cli::RecordArgs,
 }
 
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
@@ -89,11 +92,22 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         bar
     });
     let started = Instant::now();
-    let (series, report) = run(&config, &mut |f| {
-        if let Some(bar) = &bar {
-            bar.set_position((f * 1000.0) as u64);
-        }
-    })?;
+    // Closed on every way out: finished below, or dropped with an error.
+    let recorder = args.record.start(record::Kind::Experiment, 0)?;
+    if let Some(addr) = recorder.as_ref().and_then(record::Recorder::live_addr) {
+        eprintln!("live view: open ws://{addr} in Foxglove or Lichtblick");
+    }
+    let sink = recorder.as_ref().map(record::Recorder::sink);
+    let (series, report) = run_recorded(
+        &config,
+        &mut |f| {
+            if let Some(bar) = &bar {
+                bar.set_position((f * 1000.0) as u64);
+            }
+        },
+        sink,
+    )?;
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
     let wall = started.elapsed().as_secs_f64();
     if let Some(bar) = &bar {
         bar.finish_and_clear();
@@ -114,6 +128,9 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
             dir.join("timing.json"),
             serde_json::to_string_pretty(&timing)?,
         )?;
+    }
+    if let Some(r) = &recorded {
+        eprintln!("{}", record::cli::summary(r));
     }
     if args.json {
         let mut v = serde_json::to_value(&report)?;

@@ -8,6 +8,9 @@ use anyhow::Context as _;
 use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
 
+use record::cli::RecordArgs;
+use record::{Kind, Recorder, RecorderReport};
+
 use crate::app::{self, Outcome, RunConfig};
 use crate::demo::{self, DemoConfig};
 use crate::device::{DeviceSpec, OpenOptions};
@@ -30,6 +33,9 @@ pub struct LoopArgs {
     /// Loop options.
     #[command(flatten)]
     pub rt: RtArgs,
+    /// Recording and live view.
+    #[command(flatten)]
+    pub record: RecordArgs,
 }
 
 /// The real-time loop options of `run` and `demo`.
@@ -65,6 +71,9 @@ pub struct DemoArgs {
     /// --delay-ms 0): the loopback latency figure.
     #[arg(long)]
     pub no_shim: bool,
+    /// Recording (both sides, one file) and live view.
+    #[command(flatten)]
+    pub record: RecordArgs,
 }
 
 /// Why the loop options are refused.
@@ -106,33 +115,75 @@ pub(super) fn run_cmd(
     shutdown: Shutdown,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
+    let periodic = args.periodic()?;
+    // On every exit from here (an error included) the recorder is finished or dropped, which
+    // closes the file.
+    let recorder = args.record.start(Kind::Operator, rt::monotonic_ns())?;
+    announce(recorder.as_ref(), args.json, out)?;
     let config = RunConfig {
         net,
         device,
         open,
         safety,
         seconds: args.seconds,
-        periodic: args.periodic()?,
+        periodic,
         realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
         node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
+        record: recorder.as_ref().map(Recorder::sink),
     };
     let outcome = app::run(config, shutdown)?;
-    emit(&outcome, args.out.as_deref(), args.json, out)
+    let recorded = recorder.map(Recorder::finish).transpose()?;
+    emit(&outcome, args.out.as_deref(), args.json, out)?;
+    report_recording(recorded.as_ref(), args.json, out)
+}
+
+/// Says where the live view is, when there is one.
+fn announce(recorder: Option<&Recorder>, json: bool, out: &mut dyn Write) -> anyhow::Result<()> {
+    if let Some(addr) = recorder.and_then(Recorder::live_addr) {
+        let line = format!("live view: open ws://{addr} in Foxglove or Lichtblick");
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
+    }
+    Ok(())
+}
+
+/// One line on what the recorder did (to stderr under `--json`).
+fn report_recording(
+    report: Option<&RecorderReport>,
+    json: bool,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    if let Some(r) = report {
+        let line = record::cli::summary(r);
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+        }
+    }
+    Ok(())
 }
 
 /// `operator demo`: runs the demo, prints the report and writes its files.
 pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<()> {
+    let recorder = args.record.start(Kind::Demo, rt::monotonic_ns())?;
     let config = DemoConfig {
         delay_ms: args.delay_ms,
         seconds: args.seconds,
         spin_us: args.rt.spin_us,
         realtime_priority: args.rt.realtime_priority,
         via_shim: !args.no_shim,
+        record: recorder.as_ref().map(Recorder::sink),
         ..DemoConfig::default()
     };
+    announce(recorder.as_ref(), args.json, out)?;
     if !args.json {
         let link = if args.no_shim {
             "direct".to_owned()
@@ -147,7 +198,9 @@ pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow:
         out.flush()?;
     }
     let outcome = demo::run(&config, shutdown)?;
-    emit(&outcome, Some(&args.out), args.json, out)
+    let recorded = recorder.map(Recorder::finish).transpose()?;
+    emit(&outcome, Some(&args.out), args.json, out)?;
+    report_recording(recorded.as_ref(), args.json, out)
 }
 
 /// Prints the report (table or JSON) and writes the files.
