@@ -185,11 +185,13 @@ pub struct ParameterReport {
     /// Axis group: `normal` or `tangential`.
     pub axes: String,
     /// `(name, true, estimated, error %)`.
+    #[serde(deserialize_with = "nullable::values")]
     pub values: Vec<(String, f64, f64, f64)>,
     /// The back-solve's confidence in the final set: `{"kind":"low","condition":…}` when the
     /// parameters are nearly unobservable (e.g. k1 ≫ k2) and their errors amplified.
     pub confidence: Confidence,
     /// Condition number of `∂ log θ/∂ log φ` at the final set.
+    #[serde(deserialize_with = "nullable::f64")]
     pub condition: f64,
     /// Confirmed sets of this group whose back-solve reported low confidence, and all confirmed
     /// sets, when the estimator's counters are at hand (the in-process experiment).
@@ -579,5 +581,27 @@ impl Series {
             );
         }
         out
+    }
+}
+
+/// JSON has no NaN or infinity: `serde_json` writes them as `null`. A report read back (from a
+/// recording's `/run/end`) takes `null` as NaN: the value was not a finite number.
+mod nullable {
+    use serde::{Deserialize, Deserializer};
+
+    pub(super) fn f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    type Row = (String, Option<f64>, Option<f64>, Option<f64>);
+
+    pub(super) fn values<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Vec<(String, f64, f64, f64)>, D::Error> {
+        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        Ok(Vec::<Row>::deserialize(d)?
+            .into_iter()
+            .map(|(name, a, b, c)| (name, nan(a), nan(b), nan(c)))
+            .collect())
     }
 }
