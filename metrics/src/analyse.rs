@@ -594,10 +594,9 @@ mod nullable {
     }
 
     type Row = (String, Option<f64>, Option<f64>, Option<f64>);
+    type Value = (String, f64, f64, f64);
 
-    pub(super) fn values<'de, D: Deserializer<'de>>(
-        d: D,
-    ) -> Result<Vec<(String, f64, f64, f64)>, D::Error> {
+    pub(super) fn values<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Value>, D::Error> {
         let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
         Ok(Vec::<Row>::deserialize(d)?
             .into_iter()
