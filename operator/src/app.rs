@@ -135,6 +135,9 @@ pub struct Outcome {
     pub final_offset_ns: Option<i64>,
     /// Haptic-loop ticks run.
     pub ticks: u64,
+    /// With a recorder: the haptic-loop period while it recorded and while it was paused
+    /// (`helper::Recording::periods`).
+    pub record_periods: Option<[rt::Summary; 2]>,
 }
 
 /// Runs the operator until the run's length or `shutdown`, then reports.
@@ -285,6 +288,10 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         frame: end.frame,
         final_offset_ns: stats.clock_offset_ns,
         ticks: end.ticks,
+        record_periods: config
+            .record
+            .as_ref()
+            .map(|_| recording.periods.each_ref().map(rt::Histogram::summary)),
     };
     if let Some(sink) = &config.record {
         outcome.record_end(sink);

@@ -53,6 +53,10 @@ pub struct Recording {
     pub clouds: (u64, u64),
     /// Nodes built for reconnections.
     pub reconnect_nodes: u64,
+    /// Haptic-loop periods (tick start to the next tick's start) while the recorder recorded
+    /// (`[0]`) and while it was paused (`[1]`): what recording and the live view cost the loop,
+    /// measured in one run (`operator demo --record-ab-s`). Empty without a recorder.
+    pub periods: [rt::Histogram; 2],
 }
 
 /// Starts the helper; `session` is the session of the loop's first node, `config` the operator
@@ -83,6 +87,7 @@ pub fn spawn(
                     link_due: std::time::Instant::now(),
                 }),
                 last_position: [0.0; 3],
+                previous_tick: None,
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
@@ -102,6 +107,8 @@ struct Helper {
     record: Option<Forward>,
     /// The commanded position of the last tick (where a reconnection's node starts).
     last_position: [f64; 3],
+    /// The last tick's index and start [ns].
+    previous_tick: Option<(u64, i64)>,
 }
 
 /// What goes to the recorder: this round's batch, and what the events are edges of.
@@ -121,6 +128,13 @@ impl Helper {
         let recording = self.record.as_ref().is_some_and(|f| !f.sink.is_paused());
         while let Some(t) = self.exchange.ticks.take() {
             self.last_position = t.position_m;
+            if let Some((index, started_ns)) = self.previous_tick
+                && self.record.is_some()
+                && t.index == index + 1
+            {
+                self.recording.periods[usize::from(!recording)].record(t.started_ns - started_ns);
+            }
+            self.previous_tick = Some((t.index, t.started_ns));
             let r = &mut self.recording;
             if r.ticks.len() < MAX_RECORDED_TICKS {
                 r.ticks.push(TickSample {

@@ -124,7 +124,7 @@ impl std::fmt::Debug for RecordSink {
 impl RecordSink {
     /// Hands over a batch; `false` (and counted) when the queue is full or the recorder stopped.
     pub fn send(&self, batch: Vec<Timed>) -> bool {
-        if batch.is_empty() || self.is_paused() {
+        if batch.is_empty() || self.skips(&batch) {
             return true;
         }
         let n = batch.len() as u64;
@@ -141,7 +141,7 @@ impl RecordSink {
     /// experiment), which would rather wait than lose data. `false` (and counted) when the
     /// recorder stopped.
     pub fn send_waiting(&self, batch: Vec<Timed>) -> bool {
-        if batch.is_empty() || self.is_paused() {
+        if batch.is_empty() || self.skips(&batch) {
             return true;
         }
         let n = batch.len() as u64;
@@ -150,6 +150,14 @@ impl RecordSink {
             self.dropped.fetch_add(n, Relaxed);
         }
         sent
+    }
+
+    /// While paused, everything is skipped but `/run` and `/run/end` (a report needs them).
+    fn skips(&self, batch: &[Timed]) -> bool {
+        self.is_paused()
+            && !batch
+                .iter()
+                .all(|t| matches!(t.message, Message::Run(_) | Message::RunEnd(_)))
     }
 
     /// Hands over one message.
@@ -166,6 +174,11 @@ impl RecordSink {
     /// send.
     pub fn is_paused(&self) -> bool {
         self.paused.load(Relaxed)
+    }
+
+    /// Pauses (or resumes) recording, as [`Recorder::pause`] does, from wherever the sink is.
+    pub fn set_paused(&self, paused: bool) {
+        self.paused.store(paused, Relaxed);
     }
 
     /// Whether this producer records point-cloud frames.
@@ -258,8 +271,8 @@ impl Recorder {
         self.live_addr
     }
 
-    /// Pauses (or resumes) recording: while paused, producers hand nothing over and the file and
-    /// the live view get nothing. For measuring what recording costs the loops, in one run.
+    /// Pauses (or resumes) recording: while paused, producers hand nothing over (but a run's
+    /// `/run` and `/run/end`) and the file and the live view get nothing else. For measuring what recording costs the loops, in one run.
     pub fn pause(&self, paused: bool) {
         self.sink.paused.store(paused, Relaxed);
     }
@@ -316,7 +329,9 @@ impl McapOut {
             error: e.to_string(),
         };
         if path.file_name().is_none() || path.is_dir() {
-            return Err(err(&"is a directory, expected a file name such as run.mcap"));
+            return Err(err(
+                &"is a directory, expected a file name such as run.mcap",
+            ));
         }
         let file = File::create(partial_path(path)).map_err(|e| err(&e))?;
         let options = mcap::WriteOptions::new()
@@ -584,7 +599,11 @@ impl Writer {
                 }
             }
             drop(file);
-            let written = if self.failed.is_none() { &path } else { &partial };
+            let written = if self.failed.is_none() {
+                &path
+            } else {
+                &partial
+            };
             self.report.bytes = std::fs::metadata(written).map_or(0, |m| m.len());
         }
         match self.failed {

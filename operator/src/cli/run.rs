@@ -74,6 +74,11 @@ pub struct DemoArgs {
     /// Recording (both sides, one file) and live view.
     #[command(flatten)]
     pub record: RecordArgs,
+    /// Pause and resume the recorder (file and live view) every S seconds, and print the
+    /// haptic-loop period while recording and while paused: what recording costs the loop,
+    /// measured in one run (needs --record or --live).
+    #[arg(long, value_name = "S")]
+    pub record_ab_s: Option<f64>,
 }
 
 /// Why the loop options are refused.
@@ -197,10 +202,62 @@ pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow:
         )?;
         out.flush()?;
     }
-    let outcome = demo::run(&config, shutdown)?;
+    let toggler = match (args.record_ab_s, &config.record) {
+        (None, _) => None,
+        (Some(s), Some(sink)) if s.is_finite() && (0.1..=3600.0).contains(&s) => {
+            Some(spawn_toggler(sink.clone(), s, shutdown.clone())?)
+        }
+        (Some(s), Some(_)) => anyhow::bail!("--record-ab-s {s}: expected 0.1 to 3600 seconds"),
+        (Some(_), None) => anyhow::bail!("--record-ab-s needs --record or --live"),
+    };
+    let result = demo::run(&config, shutdown);
+    if let Some((stop, thread)) = toggler {
+        stop.trigger();
+        let _ = thread.join();
+    }
+    let outcome = result?;
     let recorded = recorder.map(Recorder::finish).transpose()?;
     emit(&outcome, Some(&args.out), args.json, out)?;
-    report_recording(recorded.as_ref(), args.json, out)
+    report_recording(recorded.as_ref(), args.json, out)?;
+    if args.record_ab_s.is_some()
+        && let Some([on, off]) = outcome.record_periods
+    {
+        let line = format!(
+            "haptic loop period, recording: {on}\nhaptic loop period, paused:    {off}\n\
+             p99 difference (recording − paused): {:+.1} µs",
+            on.p99_us - off.p99_us
+        );
+        if args.json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+        }
+    }
+    Ok(())
+}
+
+/// Starts the thread that pauses and resumes the recorder every `seconds` (recording first),
+/// until the returned stop or `shutdown`.
+fn spawn_toggler(
+    sink: record::RecordSink,
+    seconds: f64,
+    shutdown: Shutdown,
+) -> anyhow::Result<(Shutdown, std::thread::JoinHandle<()>)> {
+    let stop = Shutdown::new();
+    let stopped = stop.clone();
+    let every = std::time::Duration::from_secs_f64(seconds);
+    let thread = std::thread::Builder::new()
+        .name("record-ab".to_owned())
+        .spawn(move || {
+            let mut paused = false;
+            while !stopped.wait_timeout(every) && !shutdown.is_triggered() {
+                paused = !paused;
+                sink.set_paused(paused);
+            }
+            sink.set_paused(false);
+        })
+        .context("starting the record-ab thread")?;
+    Ok((stop, thread))
 }
 
 /// Prints the report (table or JSON) and writes the files.
