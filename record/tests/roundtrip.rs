@@ -160,10 +160,7 @@ fn the_file_is_checked_at_start_and_renamed_into_place_when_finished() {
     assert_eq!(report.bytes, std::fs::metadata(&path).unwrap().len());
     assert_eq!(read(&path, &[]).unwrap().operator_ticks, [operator_tick(0)]);
     // Refused before any run: a directory, a directory that does not exist.
-    for bad in [
-        temp(""),
-        temp("no-such-dir").join("run.mcap"),
-    ] {
+    for bad in [temp(""), temp("no-such-dir").join("run.mcap")] {
         let Err(e) = start(bad.clone()) else {
             panic!("{} accepted", bad.display());
         };
