@@ -82,6 +82,16 @@ pub fn report(rec: &Recording) -> Result<RecordedReport, RecordedError> {
             "the recording is cut short ({why}): figures up to its end"
         ));
     }
+    if let (Some(first), Some(last)) = (rec.operator_ticks.first(), rec.operator_ticks.last()) {
+        let span = last.index.saturating_sub(first.index) + 1;
+        let missing = span.saturating_sub(rec.operator_ticks.len() as u64);
+        if missing > 0 {
+            warnings.push(format!(
+                "{missing} of {span} haptic ticks are not in the recording (paused or dropped): \
+                 figures differ from the run's"
+            ));
+        }
+    }
     if end.is_none() {
         warnings.push(
             "no /run/end: the run did not finish; its end-of-run counters are unknown".to_owned(),

@@ -41,16 +41,18 @@ impl RecordArgs {
     }
 }
 
-/// One line on what a recorder did: `recording: FILE (N messages, X MB, D dropped); live view:
-/// C viewers, S sent, D dropped`.
+/// One line on what a recorder did: `recording: FILE (N messages, X MB in T s: R MB/s, D
+/// dropped); live view: C viewers, S sent, D dropped`.
 pub fn summary(r: &RecorderReport) -> String {
     let mut parts = Vec::new();
     if let Some(path) = &r.path {
         parts.push(format!(
-            "recording: {} ({} messages, {:.2} MB, {} dropped)",
+            "recording: {} ({} messages, {:.2} MB in {:.1} s: {:.3} MB/s, {} dropped)",
             path.display(),
             r.messages,
             r.bytes as f64 / 1e6,
+            r.seconds,
+            r.bytes_per_second() / 1e6,
             r.dropped
         ));
     }

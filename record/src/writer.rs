@@ -95,8 +95,21 @@ pub struct RecorderReport {
     pub dropped: u64,
     /// Messages that could not be encoded.
     pub unencodable: u64,
+    /// How long the recorder ran, start to finish \[s\] (wall time).
+    pub seconds: f64,
     /// The live view, if there was one.
     pub live: Option<LiveReport>,
+}
+
+impl RecorderReport {
+    /// The file's size over the time the recorder ran \[bytes/s\].
+    pub fn bytes_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.bytes as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
 }
 
 enum Command {
@@ -240,6 +253,7 @@ impl Recorder {
             scene: SceneState::default(),
             header,
             buf: Vec::with_capacity(4096),
+            started: Instant::now(),
             report: RecorderReport {
                 path: config.mcap,
                 ..RecorderReport::default()
@@ -469,6 +483,7 @@ struct Writer {
     scene: SceneState,
     header: schema::Header,
     buf: Vec<u8>,
+    started: Instant,
     report: RecorderReport,
     failed: Option<RecordError>,
 }
@@ -573,6 +588,7 @@ impl Writer {
 
     fn finish(mut self, dropped: u64) -> Result<RecorderReport, RecordError> {
         self.report.dropped = dropped;
+        self.report.seconds = self.started.elapsed().as_secs_f64();
         self.report.live = self.live.take().map(|l| l.server.stop());
         if let Some(out) = self.out.take() {
             let McapOut {

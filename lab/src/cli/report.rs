@@ -18,6 +18,10 @@ pub struct ReportArgs {
     /// Print the report as JSON instead of the table.
     #[arg(long)]
     json: bool,
+    /// Compare with the live run's report.json: print every value that differs (none: "same
+    /// figures"), and exit non-zero if any does.
+    #[arg(long, value_name = "REPORT.json")]
+    against: Option<PathBuf>,
 }
 
 pub fn run(args: ReportArgs) -> Result<()> {
@@ -31,6 +35,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
             let path = dir.join(name);
             std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
         }
+    }
+    if let Some(live) = &args.against {
+        return against(&r.json, live);
     }
     if args.json {
         return super::print_json(&r.json);
@@ -46,6 +53,69 @@ pub fn run(args: ReportArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--against REPORT.json`.
+fn against(recorded: &serde_json::Value, live: &std::path::Path) -> Result<()> {
+    let text =
+        std::fs::read_to_string(live).with_context(|| format!("reading {}", live.display()))?;
+    let mut live_json: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: expected a run's report.json", live.display()))?;
+    // The run's wall time is not a figure of the run (mmt experiment --json adds it; a
+    // networked run's recording has it).
+    let mut recorded = recorded.clone();
+    for json in [&mut live_json, &mut recorded] {
+        if let Some(o) = json.as_object_mut() {
+            o.remove("wall_seconds");
+        }
+    }
+    let mut differences = Vec::new();
+    differ(&live_json, &recorded, String::new(), &mut differences);
+    if differences.is_empty() {
+        println!(
+            "same figures: every value of {} is the recording's",
+            live.display()
+        );
+        return Ok(());
+    }
+    for d in &differences {
+        println!("{d}");
+    }
+    anyhow::bail!(
+        "{} value(s) of {} differ from the recording's",
+        differences.len(),
+        live.display()
+    )
+}
+
+/// Every path where `live` and `recorded` differ.
+fn differ(
+    live: &serde_json::Value,
+    recorded: &serde_json::Value,
+    at: String,
+    out: &mut Vec<String>,
+) {
+    use serde_json::Value;
+    match (live, recorded) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (k, v) in a {
+                match b.get(k) {
+                    Some(w) => differ(v, w, format!("{at}.{k}"), out),
+                    None => out.push(format!("{at}.{k}: not in the recording's report")),
+                }
+            }
+            for k in b.keys().filter(|k| !a.contains_key(*k)) {
+                out.push(format!("{at}.{k}: only in the recording's report"));
+            }
+        }
+        (Value::Array(a), Value::Array(b)) if a.len() == b.len() => {
+            for (i, (v, w)) in a.iter().zip(b).enumerate() {
+                differ(v, w, format!("{at}[{i}]"), out);
+            }
+        }
+        (a, b) if a != b => out.push(format!("{at}: live {a}, recording {b}")),
+        _ => {}
+    }
 }
 
 /// A networked run's own figures, from its report's JSON.
