@@ -64,3 +64,42 @@ pub fn summary(r: &RecorderReport) -> String {
     }
     parts.join("; ")
 }
+
+/// The thread of `--record-ab-s`: pauses and resumes a recorder every period (recording first)
+/// until stopped, then leaves it recording. What recording costs the loops is measured by
+/// comparing the two halves of one run.
+pub struct Toggler {
+    stop: rt::Shutdown,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Toggler {
+    /// Starts toggling `sink` every `every`.
+    pub fn start(sink: crate::RecordSink, every: std::time::Duration) -> std::io::Result<Toggler> {
+        let stop = rt::Shutdown::new();
+        let stopped = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("record-ab".to_owned())
+            .spawn(move || {
+                let mut paused = false;
+                while !stopped.wait_timeout(every) {
+                    paused = !paused;
+                    sink.set_paused(paused);
+                }
+                sink.set_paused(false);
+            })?;
+        Ok(Toggler {
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Toggler {
+    fn drop(&mut self) {
+        self.stop.trigger();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

@@ -4,7 +4,7 @@
 //! them again from a recording) — plus what only the end of the run knows: the haptic loop's
 //! timing, the link's counters, the safety layer's trips, the device's faults.
 
-use std::fmt::Write as _;
+mod table;
 
 use metrics::networked::{self, NetworkedFigures, NetworkedRun};
 use metrics::{ExperimentReport, NodeInfo, Series, parameter_report};
@@ -22,6 +22,7 @@ use crate::helper::Recording;
 use crate::safety::SafetyStats;
 
 pub use metrics::networked::{DelayEstimate, LagRange};
+pub use table::table;
 
 /// Everything a networked run reports.
 #[derive(Clone, Debug, Serialize)]
@@ -73,10 +74,8 @@ pub struct NetworkedReport {
     pub device_fault: Option<String>,
     /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
-    /// The telerobot daemon's summary (the demo, which runs it).
-    pub telerobot: Option<telerobot::Summary>,
-    /// The netem shim's figures (the demo).
-    pub shim: Option<ShimReport>,
+    /// The directions the series' forces are plotted along (`mmt plot` reads them).
+    pub series_axes: SeriesAxes,
 }
 
 impl NetworkedReport {
@@ -108,28 +107,28 @@ impl NetworkedReport {
     }
 }
 
-/// The netem shim's figures.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct ShimReport {
-    /// Release lateness (actual − due send time), both directions \[µs\].
-    pub lateness: Summary,
-    /// Datagrams forwarded up (operator → telerobot) and down.
-    pub forwarded: (u64, u64),
-    /// Datagrams dropped by the link model (loss, queue limit), up and down.
-    pub dropped: (u64, u64),
+/// The directions a series' forces are plotted along: the surface's second tangent (the thesis's
+/// "y") and its normal, unit vectors in the world frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct SeriesAxes {
+    /// Second tangent.
+    pub tangent: [f64; 3],
+    /// Normal.
+    pub normal: [f64; 3],
 }
 
-impl From<&netem::ShimStats> for ShimReport {
-    fn from(s: &netem::ShimStats) -> Self {
-        ShimReport {
-            lateness: s.lateness,
-            forwarded: (s.up.forwarded, s.down.forwarded),
-            dropped: (
-                s.up.dropped_loss + s.up.dropped_limit,
-                s.down.dropped_loss + s.down.dropped_limit,
-            ),
-        }
-    }
+/// What another part of a run measured, for the rows of the operator's table that only a run
+/// with that part in the same process can fill (the demo: the telerobot daemon and the shim).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PeerFigures {
+    /// The telerobot's link counters (quinn's, for its row).
+    pub telerobot_link: Option<LinkReport>,
+    /// The uplink's one-way latency, command sample → telerobot receipt.
+    pub uplink_latency: Option<Summary>,
+    /// The telerobot loop's timing.
+    pub telerobot_timing: Option<TimingReport>,
+    /// The netem shim's release lateness.
+    pub shim_lateness: Option<Summary>,
 }
 
 /// What a run knew about itself.
@@ -201,211 +200,22 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             .fault()
             .map(|f| format!("{} (at {:.3} s)", f.cause, f.at.as_secs_f64())),
         wall_seconds: facts.wall_seconds,
-        telerobot: None,
-        shim: None,
+        series_axes: SeriesAxes {
+            tangent: series.axis,
+            normal: series.normal,
+        },
     };
     (series, report)
 }
 
-/// The stdout table: `mmt experiment`'s, then the networked figures.
-pub fn table(r: &NetworkedReport) -> String {
-    let mut out = metrics::table(&r.experiment);
-    let _ = write_extras(&mut out, r);
-    out
-}
-
-fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
-    let opt =
-        |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
-    // p50 / p99 / max of a distribution in µs, or in ms.
-    let us = |q: &Summary| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
-    let ms = |q: &Summary| {
-        format!(
-            "{:.2} / {:.2} / {:.2} ms",
-            q.p50_us / 1e3,
-            q.p99_us / 1e3,
-            q.max_us / 1e3
-        )
-    };
-    let count = |t: &TimingReport| format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks);
-    // Without the scene's truth, the parameters as received.
-    if let Some(p) = r
-        .parameters_received
-        .filter(|_| r.experiment.parameters.is_empty())
-    {
-        for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
-            if let Some(set) = set {
-                writeln!(out, "parameters received, {axes}: {:.4?}", set.terms)?;
-            }
-        }
-    }
-    let mut rows: Vec<(String, String)> = Vec::new();
-    let mut row = |name: &str, value: String| rows.push((name.to_owned(), value));
-    row(
-        "measured_delay_ms (rendered leads measured)",
-        opt(r.measured_delay_ms, "ms"),
-    );
-    if let Some(d) = r.set_delay_ms {
-        row("  set one-way delay", format!("{d:.2} ms"));
-    }
-    if let Some(e) = &r.delay_estimate {
-        row("  peak correlation", format!("{:.4}", e.peak_correlation));
-    }
-    let t = &r.loop_timing;
-    row("haptic loop period p50 / p99 / max", us(&t.period));
-    row("  lateness p50 / p99 / max", us(&t.lateness));
-    row("  work p50 / p99 / max", us(&t.work));
-    row("  ticks, overruns, skipped", count(t));
-    let l = &r.link;
-    row(
-        "datagrams sent / received",
-        format!("{} / {}", l.sent, l.received),
-    );
-    row(
-        "  late / lost / duplicate / garbage",
-        format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
-    );
-    // What quinn itself did with the datagrams it was handed: every one on the wire (none held
-    // back by a congestion window or pacing), no congestion events.
-    let quinn = |l: &LinkReport| {
-        format!(
-            "{} of {} / {} / {}",
-            l.quinn_datagrams_transmitted, l.sent, l.quinn_congestion_events, l.quinn_lost_packets
-        )
-    };
-    row(
-        "  quinn, operator: on the wire / congestion events / lost packets",
-        quinn(l),
-    );
-    if let Some(t) = &r.telerobot {
-        row(
-            "  quinn, telerobot: on the wire / congestion events / lost packets",
-            quinn(&t.link),
-        );
-    }
-    row(
-        "  longest gap between accepted datagrams",
-        format!("{:.1} ms", l.max_gap_ms),
-    );
-    row(
-        "RTT smoothed / min",
-        format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
-    );
-    row(
-        "clock offset (telerobot − operator)",
-        opt(l.clock_offset_ms, "ms"),
-    );
-    // One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
-    let mut latency = |name: &str, l: &Summary| {
-        row(name, ms(l));
-        if let Some(d) = r.set_delay_ms {
-            row(
-                "  beyond the set delay p50 / p99 / max",
-                us(&l.shifted(-d * 1e3)),
-            );
-        }
-    };
-    if let Some(t) = &r.telerobot {
-        latency(
-            "uplink: command sample → telerobot receipt",
-            &t.command_latency,
-        );
-    }
-    latency(
-        "downlink: measurement send → operator receipt",
-        &r.downlink_latency,
-    );
-    row("sessions", r.sessions.to_string());
-    if let Some(t) = &r.telerobot {
-        row(
-            "telerobot loop period p50 / p99 / max",
-            us(&t.timing.period),
-        );
-        row("  ticks, overruns, skipped", count(&t.timing));
-    }
-    if let Some(s) = &r.shim {
-        row("netem release lateness p50 / p99 / max", us(&s.lateness));
-    }
-    let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
-    row(
-        "renderer ticks: unresolved (gate) / clipped",
-        format!(
-            "{} / {}",
-            sum(|s| s.unresolved_ticks),
-            sum(|s| s.clipped_ticks)
-        ),
-    );
-    let s = &r.safety;
-    row(
-        "safety episodes: watchdog / rate / max / workspace",
-        format!(
-            "{} / {} / {} / {}",
-            s.watchdog_fading.episodes,
-            s.rate_limited.episodes,
-            s.saturated.episodes,
-            s.workspace.episodes
-        ),
-    );
-    row(
-        "  loop overrun / stale parameters / clutch",
-        format!(
-            "{} / {} / {}",
-            s.loop_overrun.episodes, s.stale_params.episodes, s.clutch.episodes
-        ),
-    );
-    row(
-        "  non-finite force / position / velocity",
-        format!(
-            "{} / {} / {}",
-            s.non_finite_force.episodes,
-            s.non_finite_position.episodes,
-            s.non_finite_velocity.episodes
-        ),
-    );
-    row(
-        "  position-scale changes refused",
-        s.scale_rejections.to_string(),
-    );
-    row(
-        "device state, faults",
-        format!("{:?} / {}", r.device_state, r.device_faults),
-    );
-    if let Some(f) = &r.device_fault {
-        row("  fault", f.clone());
-    }
-    let p = &s.passivity;
-    row(
-        "passivity: min energy / dissipated / ticks",
-        format!(
-            "{:.2} / {:.2} mJ / {} ({} capped)",
-            p.min_energy_j * 1e3,
-            p.dissipated_j * 1e3,
-            p.controlling.ticks,
-            p.capped.ticks
-        ),
-    );
-    writeln!(out, "network")?;
-    for (name, value) in rows {
-        writeln!(out, "{name:<46} {value:>14}")?;
-    }
-    Ok(())
-}
-
-/// The files of `--out DIR`: `mmt experiment`'s series and plots, and `report.json` with every
-/// figure of [`NetworkedReport`].
-pub fn files(
-    r: &NetworkedReport,
-    s: &Series,
-) -> Result<Vec<(String, Vec<u8>)>, lab::plot::PlotError> {
-    let mut files = lab::report::files(&r.experiment, s)?;
-    let json =
-        serde_json::to_string_pretty(r).map_err(|e| lab::plot::PlotError::Draw(e.to_string()))?;
-    for (name, bytes) in &mut files {
-        if name == "report.json" {
-            *bytes = json.clone().into_bytes();
-        }
-    }
-    Ok(files)
+/// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the
+/// series as `series.csv`. The plots are `lab`'s (`mmt plot DIR` draws them from these two
+/// files): the daemons link no plotting library.
+pub fn files(r: &NetworkedReport, s: &Series) -> Result<Vec<(String, Vec<u8>)>, serde_json::Error> {
+    Ok(vec![
+        ("report.json".to_owned(), serde_json::to_vec_pretty(r)?),
+        ("series.csv".to_owned(), s.to_csv().into_bytes()),
+    ])
 }
 
 #[cfg(test)]

@@ -249,7 +249,7 @@ pub struct StateSyncRec {
     pub received_ns: Option<i64>,
     /// The command it belongs to [ns, operator clock].
     pub command_sample_time_ns: i64,
-    /// `[mass position m, mass velocity m/s]` along tangent1 and tangent2.
+    /// `[contact deflection m, mass velocity m/s]` along tangent1 and tangent2.
     pub tangential: [[f64; 2]; 2],
     /// In contact then.
     pub in_contact: bool,
@@ -267,7 +267,7 @@ impl StateSyncRec {
             command_sample_time_ns: s.command_sample_time_ns,
             tangential: s
                 .tangential
-                .map(|a| [a.mass_position_m, a.mass_velocity_m_per_s]),
+                .map(|a| [a.deflection_m, a.mass_velocity_m_per_s]),
             in_contact: s.in_contact,
             episode_onset_ns: s.episode_onset_ns,
         }

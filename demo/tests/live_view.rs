@@ -8,8 +8,8 @@
 
 use std::time::Duration;
 
+use demo::run::{DemoConfig, run};
 use futures_util::{SinkExt as _, StreamExt as _};
-use operator::demo::{self, DemoConfig};
 use record::{Kind, Recorder, RecorderConfig};
 use rt::Shutdown;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest as _;
@@ -77,7 +77,7 @@ fn a_stalled_viewer_does_not_hold_up_the_haptic_loop() {
         record: Some(recorder.sink()),
         ..DemoConfig::default()
     };
-    let demo = std::thread::spawn(move || demo::run(&config, Shutdown::new()));
+    let demo = std::thread::spawn(move || run(&config, Shutdown::new()));
 
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -113,7 +113,7 @@ fn a_stalled_viewer_does_not_hold_up_the_haptic_loop() {
     );
     // The recording is not the viewers': it kept everything.
     assert_eq!(report.dropped, 0);
-    let timing = &outcome.report.loop_timing;
+    let timing = &outcome.report.run.loop_timing;
     assert!(timing.ticks >= 5900, "{timing:?}");
     assert_eq!(timing.skipped_ticks, 0, "{timing:?}");
     assert!(timing.period.max_us < 100_000.0, "{timing:?}");

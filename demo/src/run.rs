@@ -1,8 +1,8 @@
-//! `operator demo`: the whole system in one process over real loopback QUIC/UDP — throw-away
-//! certificates in a temporary directory, the telerobot daemon on the built-in exp-1 scene, the
-//! netem shim delaying each direction, and the operator app with the scripted exp-1 device —
-//! then the report. The same code paths as the two binaries: [`telerobot::Telerobot::start`]
-//! (what `telerobot run` runs) and [`crate::app::run`] (what `operator run` runs).
+//! The demo run: throw-away certificates in a temporary directory, the telerobot daemon on the
+//! built-in exp-1 scene, the netem shim delaying each direction, and the operator app with the
+//! scripted exp-1 device — then the report. The same code paths as the two binaries:
+//! [`telerobot::Telerobot::start`] (what `telerobot run` runs) and [`operator::app::run`] (what
+//! `operator run` runs).
 //!
 //! ```text
 //!  operator app ──QUIC/UDP──▶ netem shim (delay each way) ──▶ telerobot daemon
@@ -20,11 +20,12 @@ use telerobot::Telerobot;
 use transport::LinkTuning;
 use transport::identity::{self, Identity};
 
-use crate::app::{self, Known, Outcome, RunConfig, RunError};
-use crate::device::{DeviceSpec, OpenOptions};
-use crate::net::NetConfig;
-use crate::report::ShimReport;
-use crate::safety::SafetyConfig;
+use operator::app::{self, Known, RunConfig, RunError};
+use operator::device::{DeviceSpec, OpenOptions};
+use operator::net::NetConfig;
+use operator::safety::SafetyConfig;
+
+use crate::report::{DemoReport, ShimReport};
 
 /// The demo's settings.
 #[derive(Clone, Debug)]
@@ -91,7 +92,8 @@ pub enum DemoError {
 }
 
 impl DemoConfig {
-    fn validate(&self) -> Result<(), DemoError> {
+    /// Checks every setting against its range.
+    pub fn validate(&self) -> Result<(), DemoError> {
         let check = |field, value: f64, ok: bool, expected| {
             if ok {
                 Ok(())
@@ -130,14 +132,22 @@ impl DemoConfig {
     }
 }
 
+/// What a demo run gives: its report and the operator's series (for the files of `--out`).
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The report.
+    pub report: DemoReport,
+    /// The operator's series.
+    pub series: metrics::Series,
+    /// With a recorder: the haptic-loop period while it recorded and while it was paused.
+    pub record_periods: Option<[rt::Summary; 2]>,
+}
+
 /// Runs the demo (about `seconds` plus a few seconds of set-up). `shutdown` ends it early.
 pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError> {
     config.validate()?;
     // Written to files and read back, as `gen-cert` and the two `run`s do.
-    let dir = TempDir::new();
-    let names = ["telerobot", "localhost"];
-    let (_, tr_cert, _) = Identity::generate_files(dir.path(), "telerobot", &names)?;
-    let (_, op_cert, _) = Identity::generate_files(dir.path(), "operator", &["operator"])?;
+    let certs = Certificates::generate()?;
     let tuning = LinkTuning::with_expected_delay_ms(config.delay_ms)?;
     let spin_ns = (config.spin_us * 1e3).round() as i64;
     let periodic = PeriodicConfig {
@@ -148,8 +158,11 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     let scene = Scene::exp1();
     let telerobot = Telerobot::start(telerobot::RunConfig {
         listen: loopback,
-        identity: Identity::read_pem(dir.path(), "telerobot")?,
-        trusted_operators: vec![(op_cert.clone(), identity::read_cert(&op_cert)?)],
+        identity: Identity::read_pem(certs.dir.path(), "telerobot")?,
+        trusted_operators: vec![(
+            certs.operator.clone(),
+            identity::read_cert(&certs.operator)?,
+        )],
         tuning: tuning.clone(),
         start_m: telerobot::RunConfig::default_start(&scene),
         scene: scene.clone(),
@@ -159,12 +172,12 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         record: config.record.clone(),
     })?;
     let shim = if config.via_shim {
-        let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
-        let mut shim_config = ShimConfig::new(loopback, telerobot.local_addr());
-        shim_config.up = delay.clone();
-        shim_config.down = delay;
-        shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
-        Some(netem::shim::start(shim_config)?)
+        Some(start_shim(
+            config,
+            loopback,
+            telerobot.local_addr(),
+            spin_ns,
+        )?)
     } else {
         None
     };
@@ -174,59 +187,131 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     tracing::info!(telerobot = %telerobot.local_addr(), %connect, delay_ms = config.delay_ms,
         "demo: telerobot up");
 
+    let net = operator_net(&certs, connect, tuning)?;
+    let operator = app::run(operator_config(config, net, periodic, scene), shutdown);
+    let summary = telerobot.stop();
+    let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
+    let mut operator = operator?;
+    let shim_stats = shim_stats?;
+    operator.report.experiment.telerobot_stats = summary.last.node;
+    operator.nodes.telerobot = summary.last.node;
+    let report = DemoReport {
+        run: operator.report.clone(),
+        telerobot: summary,
+        shim: shim_stats.as_ref().map(ShimReport::from),
+    };
+    if let Some(sink) = &config.record {
+        // Again, now with the telerobot's and the shim's figures: the reader takes the last.
+        let extra = [
+            ("telerobot", serde_json::to_value(&report.telerobot)),
+            ("shim", serde_json::to_value(report.shim)),
+        ];
+        let extra = extra
+            .into_iter()
+            .filter_map(|(k, v)| Some((k.to_owned(), v.ok()?)))
+            .collect();
+        operator.record_end_with(sink, extra);
+    }
+    Ok(Outcome {
+        report,
+        series: operator.series,
+        record_periods: operator.record_periods,
+    })
+}
+
+/// Starts the netem shim on `listen`, delaying each direction to `telerobot` by the demo's
+/// delay and spinning half the loops' spin window.
+fn start_shim(
+    config: &DemoConfig,
+    listen: SocketAddr,
+    telerobot: SocketAddr,
+    spin_ns: i64,
+) -> Result<netem::ShimHandle, DemoError> {
+    let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    let mut shim_config = ShimConfig::new(listen, telerobot);
+    shim_config.up = delay.clone();
+    shim_config.down = delay;
+    shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
+    Ok(netem::shim::start(shim_config)?)
+}
+
+/// The operator's connection to `connect`, with its identity and the telerobot's pinned
+/// certificate.
+fn operator_net(
+    certs: &Certificates,
+    connect: SocketAddr,
+    tuning: LinkTuning,
+) -> Result<NetConfig, DemoError> {
     let mut net = NetConfig::new(
         connect,
-        Identity::read_pem(dir.path(), "operator")?,
-        identity::read_cert(&tr_cert)?,
-        tr_cert.display().to_string(),
+        Identity::read_pem(certs.dir.path(), "operator")?,
+        identity::read_cert(&certs.telerobot)?,
+        certs.telerobot.display().to_string(),
         "demo",
     );
     net.tuning = tuning;
+    Ok(net)
+}
+
+/// The operator app's settings: the scripted exp-1 device for the demo's length, told the
+/// scene, seed and delay it runs against.
+fn operator_config(
+    config: &DemoConfig,
+    net: NetConfig,
+    periodic: PeriodicConfig,
+    scene: Scene,
+) -> RunConfig {
     let device = DeviceSpec::Scripted {
         name: "exp1".to_owned(),
     };
-    let operator = app::run(
-        RunConfig {
-            net,
-            device,
-            open: OpenOptions {
-                scripted_length_s: Some(config.seconds),
-                ..OpenOptions::default()
-            },
-            safety: SafetyConfig::default(),
-            seconds: Some(config.seconds),
-            periodic,
-            realtime_priority: config.realtime_priority,
-            first_session_timeout: Some(Duration::from_secs(15)),
-            node: node::operator::OperatorConfig::default(),
-            experiment: "demo".to_owned(),
-            known: Some(Known {
-                scene,
-                seed: config.seed,
-                delay_ms: config.delay_ms,
-            }),
-            // Each camera frame is recorded once, by the telerobot.
-            record: config
-                .record
-                .as_ref()
-                .map(record::RecordSink::without_clouds),
+    RunConfig {
+        net,
+        device,
+        open: OpenOptions {
+            scripted_length_s: Some(config.seconds),
+            ..OpenOptions::default()
         },
-        shutdown,
-    );
-    let summary = telerobot.stop();
-    let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
-    let mut outcome = operator?;
-    let shim_stats = shim_stats?;
-    let r = &mut outcome.report;
-    r.experiment.telerobot_stats = summary.last.node;
-    outcome.nodes.telerobot = summary.last.node;
-    r.telerobot = Some(summary);
-    r.shim = shim_stats.as_ref().map(ShimReport::from);
-    if let Some(sink) = &config.record {
-        // Again, now with the telerobot's and the shim's figures: the reader takes the last.
-        outcome.record_end(sink);
+        safety: SafetyConfig::default(),
+        seconds: Some(config.seconds),
+        periodic,
+        realtime_priority: config.realtime_priority,
+        first_session_timeout: Some(Duration::from_secs(15)),
+        node: node::operator::OperatorConfig::default(),
+        experiment: "demo".to_owned(),
+        known: Some(Known {
+            scene,
+            seed: config.seed,
+            delay_ms: config.delay_ms,
+        }),
+        // Each camera frame is recorded once, by the telerobot.
+        record: config
+            .record
+            .as_ref()
+            .map(record::RecordSink::without_clouds),
     }
-    Ok(outcome)
+}
+
+/// The throw-away certificates of both ends, as files in a temporary directory.
+struct Certificates {
+    dir: TempDir,
+    /// The telerobot's certificate file.
+    telerobot: PathBuf,
+    /// The operator's certificate file.
+    operator: PathBuf,
+}
+
+impl Certificates {
+    fn generate() -> Result<Certificates, DemoError> {
+        let dir = TempDir::new();
+        let names = ["telerobot", "localhost"];
+        let (_, telerobot, _) = Identity::generate_files(dir.path(), "telerobot", &names)?;
+        let (_, operator, _) = Identity::generate_files(dir.path(), "operator", &["operator"])?;
+        Ok(Certificates {
+            dir,
+            telerobot,
+            operator,
+        })
+    }
 }
 
 /// A temporary directory removed on drop.
