@@ -21,6 +21,7 @@
 
 pub mod cli;
 mod encode;
+mod file;
 pub mod live;
 pub mod read;
 pub mod replay;

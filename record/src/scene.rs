@@ -100,6 +100,40 @@ impl SceneState {
         }
     }
 
+    /// The table and the object on it, where the surface was last seen (none before).
+    fn table_and_object(&self, entity: &dyn Fn(&str) -> SceneEntity) -> Vec<SceneEntity> {
+        let Some((point, frame)) = self.surface else {
+            return Vec::new();
+        };
+        let rotation = quaternion_of(&frame);
+        let along = |d: [f64; 3]| {
+            vec3::add(
+                vec3::scale(frame.tangent1, d[0]),
+                vec3::add(
+                    vec3::scale(frame.tangent2, d[1]),
+                    vec3::scale(frame.normal, d[2]),
+                ),
+            )
+        };
+        let [w, d, h] = OBJECT_SIZE_M;
+        let object_centre = vec3::add(point, along([self.slide[0], self.slide[1], -h / 2.0]));
+        let table_centre = vec3::add(point, along([0.0, 0.0, -h - TABLE_SIZE_M[2] / 2.0]));
+        let cube = |centre: Vec3, size: [f64; 3], color: Color| CubePrimitive {
+            pose: Some(pose(centre, rotation)),
+            size: Some(v3(size)),
+            color: Some(color),
+        };
+        let mut table = entity("table");
+        table
+            .cubes
+            .push(cube(table_centre, TABLE_SIZE_M, rgba(0.55, 0.5, 0.45, 1.0)));
+        let mut object = entity("object");
+        object
+            .cubes
+            .push(cube(object_centre, [w, d, h], rgba(0.9, 0.75, 0.3, 0.6)));
+        vec![table, object]
+    }
+
     /// The scene now, stamped `log_time_ns`.
     pub fn scene(&self, log_time_ns: u64) -> SceneUpdate {
         let stamp = Some(timestamp(log_time_ns));
@@ -109,36 +143,7 @@ impl SceneState {
             id: id.to_owned(),
             ..SceneEntity::default()
         };
-        let mut entities = Vec::new();
-        if let Some((point, frame)) = self.surface {
-            let rotation = quaternion_of(&frame);
-            let along = |d: [f64; 3]| {
-                vec3::add(
-                    vec3::scale(frame.tangent1, d[0]),
-                    vec3::add(
-                        vec3::scale(frame.tangent2, d[1]),
-                        vec3::scale(frame.normal, d[2]),
-                    ),
-                )
-            };
-            let [w, d, h] = OBJECT_SIZE_M;
-            let object_centre = vec3::add(point, along([self.slide[0], self.slide[1], -h / 2.0]));
-            let table_centre = vec3::add(point, along([0.0, 0.0, -h - TABLE_SIZE_M[2] / 2.0]));
-            let cube = |centre: Vec3, size: [f64; 3], color: Color| CubePrimitive {
-                pose: Some(pose(centre, rotation)),
-                size: Some(v3(size)),
-                color: Some(color),
-            };
-            let mut table = entity("table");
-            table
-                .cubes
-                .push(cube(table_centre, TABLE_SIZE_M, rgba(0.55, 0.5, 0.45, 1.0)));
-            let mut object = entity("object");
-            object
-                .cubes
-                .push(cube(object_centre, [w, d, h], rgba(0.9, 0.75, 0.3, 0.6)));
-            entities.extend([table, object]);
-        }
+        let mut entities = self.table_and_object(&entity);
         if let Some(p) = self.proxy {
             let mut proxy = entity("proxy");
             let color = match self.contact {

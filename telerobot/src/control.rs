@@ -183,34 +183,14 @@ impl ControlLoop {
             }
         }
         if let Some(records) = &self.records {
-            let mut record = TickRecord {
-                index: tick.index,
-                now_ns: now,
-                session: state.session,
+            records.push(tick_record(
+                &self.node,
+                [tick.index, state.session],
+                now,
                 target,
                 sample,
                 cloud_captured_ns,
-                contact: None,
-                measurement: None,
-                parameters: None,
-                state_sync: None,
-                estimators: [None; 2],
-            };
-            for d in self.node.datagrams() {
-                match *d {
-                    Datagram::Contact(c) => record.contact = Some(c),
-                    Datagram::Measurement(m) => record.measurement = Some(m),
-                    Datagram::Parameters(p) => record.parameters = Some(p),
-                    Datagram::StateSync(s) => record.state_sync = Some(s),
-                }
-            }
-            let [normal, tangential] = self.node.updates();
-            record.estimators = [
-                normal.zip(self.node.normal_estimator()),
-                tangential.zip(self.node.tangential_estimator()),
-            ]
-            .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
-            records.push(record);
+            ));
         }
         state.tick = tick.index;
         state.now_ns = now;
@@ -264,4 +244,43 @@ impl State {
             inline_node_builds: self.inline_node_builds,
         }
     }
+}
+
+/// This tick's record for the recording: plain values, built on the stack.
+fn tick_record(
+    node: &TelerobotNode,
+    [index, session]: [u64; 2],
+    now_ns: i64,
+    target: Target,
+    sample: BridgeSample,
+    cloud_captured_ns: Option<i64>,
+) -> TickRecord {
+    let mut record = TickRecord {
+        index,
+        now_ns,
+        session,
+        target,
+        sample,
+        cloud_captured_ns,
+        contact: None,
+        measurement: None,
+        parameters: None,
+        state_sync: None,
+        estimators: [None; 2],
+    };
+    for d in node.datagrams() {
+        match *d {
+            Datagram::Contact(c) => record.contact = Some(c),
+            Datagram::Measurement(m) => record.measurement = Some(m),
+            Datagram::Parameters(p) => record.parameters = Some(p),
+            Datagram::StateSync(s) => record.state_sync = Some(s),
+        }
+    }
+    let [normal, tangential] = node.updates();
+    record.estimators = [
+        normal.zip(node.normal_estimator()),
+        tangential.zip(node.tangential_estimator()),
+    ]
+    .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
+    record
 }

@@ -33,13 +33,10 @@ use sim::world::World;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
-use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE, TickRecord};
+use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE};
 use crate::net::{self, NetConfig, TelerobotLink};
-use record::schema::{
-    ContactRec, EventRec, Level, LinkRec, ParametersRec, RunEnd, RunStart, StateSyncRec,
-    TelerobotTick,
-};
-use record::{Message, RecordSink, Side, Timed};
+use crate::recording::{self, Forward};
+use record::RecordSink;
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -280,17 +277,11 @@ impl Telerobot {
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
-        let records = config
-            .record
-            .as_ref()
-            .map(|_| Arc::new(Mailbox::new(TICK_QUEUE)));
+        let records = recording::tick_mailbox(config.record.as_ref(), TICK_QUEUE);
         // Tick 0 a little ahead, so that the first deadline is not already late.
         let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
         let timing = periodic.timing();
-        if let Some(sink) = &config.record {
-            let start = run_start(&config, periodic.start_ns(), settings.period_ns);
-            sink.send_one(periodic.start_ns(), Message::Run(Box::new(start)));
-        }
+        recording::record_start(&config, periodic.start_ns(), settings.period_ns);
         let control = ControlLoop {
             node,
             settings: settings.clone(),
@@ -323,17 +314,7 @@ impl Telerobot {
             spare_at: None,
             command_latency,
             latencies: Vec::new(),
-            record: config
-                .record
-                .clone()
-                .zip(records)
-                .map(|(sink, ticks)| Forward {
-                    sink,
-                    ticks,
-                    batch: Vec::new(),
-                    session: 0,
-                    link_due: monotonic_ns(),
-                }),
+            record: config.record.clone().zip(records).map(Forward::new),
         };
         let housekeeping = keeper.spawn(&stop)?;
         tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
@@ -428,21 +409,7 @@ impl Telerobot {
         };
         if let Some(sink) = &self.record {
             let ticks = end.as_ref().map_or(last.tick, |e| e.last.tick + 1);
-            let nodes = metrics::NodeInfo {
-                parameters: summary.parameters.clone(),
-                telerobot: summary.last.node,
-                ..metrics::NodeInfo::default()
-            };
-            let end = RunEnd {
-                side: Side::Telerobot,
-                ticks,
-                nodes: Some(nodes),
-                frame: None,
-                final_offset_ns: None,
-                counters: serde_json::to_value(&summary).ok(),
-                recorder_dropped: sink.dropped(),
-            };
-            sink.send_one(monotonic_ns(), Message::RunEnd(Box::new(end)));
+            recording::record_end(sink, ticks, &summary);
         }
         let t = &summary.timing;
         tracing::info!(
@@ -488,20 +455,6 @@ struct Keeper {
     latencies: Vec<i64>,
     record: Option<Forward>,
 }
-
-/// The recording's part of the housekeeping: the loop's tick records in, batches out.
-struct Forward {
-    sink: RecordSink,
-    ticks: Arc<Mailbox<TickRecord>>,
-    batch: Vec<Timed>,
-    /// The session of the last tick (a change is an event).
-    session: u64,
-    /// When the link statistics are next due [ns].
-    link_due: i64,
-}
-
-/// How often the link statistics go to the recording [ns].
-const LINK_EVERY_NS: i64 = 100_000_000;
 
 impl Keeper {
     /// Starts the housekeeping thread.
@@ -589,95 +542,5 @@ impl Keeper {
             loop_overruns = t.overruns,
             "session ended; the robot holds still until the next operator"
         );
-    }
-}
-
-/// The daemon's `/run`.
-fn run_start(config: &RunConfig, start_ns: i64, period_ns: i64) -> RunStart {
-    let summary = config.scene_summary();
-    let frame = mmt::contact::SurfaceFrame::from_normal(config.scene.surface.normal);
-    RunStart {
-        side: Side::Telerobot,
-        experiment: "telerobot".to_owned(),
-        start_ns,
-        period_ns,
-        scene_name: summary.name,
-        left_out: summary.left_out,
-        proxy_radii_m: summary.proxy_radii_m,
-        device: None,
-        seed: Some(config.seed),
-        set_delay_ms: None,
-        scene: Some(config.scene.clone()),
-        config: None,
-        axes: frame.map(|f| [f.tangent2, f.normal]),
-        tool_start_m: Some(config.start_m),
-    }
-}
-
-impl Forward {
-    /// Hands what came since the last round to the recorder.
-    fn round(&mut self, link: &TelerobotLink) {
-        let paused = self.sink.is_paused();
-        while let Some(t) = self.ticks.take() {
-            if !paused {
-                self.tick(&t);
-            }
-        }
-        if paused {
-            return;
-        }
-        let now = monotonic_ns();
-        if now >= self.link_due {
-            self.link_due = now + LINK_EVERY_NS;
-            let status = link.status();
-            let rec = LinkRec::new(status.connected(), status.session(), &link.stats());
-            self.push(now, Message::Link(Side::Telerobot, Box::new(rec)));
-        }
-        if !self.batch.is_empty() {
-            self.sink.send(std::mem::take(&mut self.batch));
-        }
-    }
-
-    fn push(&mut self, t_ns: i64, message: Message) {
-        self.batch.push(Timed { t_ns, message });
-    }
-
-    fn tick(&mut self, t: &TickRecord) {
-        let at = t.now_ns;
-        if t.session != self.session {
-            self.session = t.session;
-            let text = format!("session {}: an operator's commands arrive", t.session);
-            self.push(
-                at,
-                Message::Event(EventRec {
-                    level: Level::Info,
-                    source: "session",
-                    text,
-                }),
-            );
-        }
-        let tick = TelerobotTick::new(
-            t.session,
-            t.index,
-            at,
-            &t.target,
-            &t.sample,
-            t.cloud_captured_ns,
-            t.measurement.as_ref(),
-            &t.estimators,
-        );
-        self.push(at, Message::TelerobotTick(Box::new(tick)));
-        if let Some(c) = &t.contact {
-            let rec = ContactRec::new(t.session, c, None);
-            self.push(at, Message::Contact(Side::Telerobot, Box::new(rec)));
-        }
-        if let Some(p) = &t.parameters {
-            let rec = ParametersRec::new(t.session, p, None);
-            self.push(at, Message::Parameters(Side::Telerobot, Box::new(rec)));
-        }
-        if let Some(s) = &t.state_sync {
-            let rec = StateSyncRec::new(t.session, s, None);
-            self.push(at, Message::StateSync(Side::Telerobot, Box::new(rec)));
-        }
     }
 }

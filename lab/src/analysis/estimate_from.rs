@@ -118,6 +118,50 @@ pub fn estimate_from(
         .tool_start_m
         .or(rec.telerobot_ticks.first().map(|t| t.tool_m))
         .unwrap_or([0.0; 3]);
+    let (node, replay) = replay(&rec, &settings, start)?;
+    let recorded: Vec<ParametersRec> = rec
+        .parameters
+        .iter()
+        .filter(|(side, _)| *side == Side::Telerobot)
+        .map(|(_, p)| *p)
+        .collect();
+    let latest = |e: Option<&mmt::estimator::Estimator>| e.and_then(|e| e.latest()).copied();
+    let parameters = parameter_report(
+        &scene,
+        [
+            latest(node.normal_estimator()).as_ref(),
+            latest(node.tangential_estimator()).as_ref(),
+        ],
+    );
+    let period_s = settings.period_ns as f64 * 1e-9;
+    Ok(EstimateFromReport {
+        file: path.display().to_string(),
+        recording: rec.describe(),
+        scene: scene.name.clone(),
+        ticks: replay.ticks,
+        seconds: replay.ticks as f64 * period_s,
+        cutoff_hz: scene.model.filter_cutoff_hz,
+        forgetting: scene.model.forgetting,
+        contact_onsets: replay.onsets,
+        time_to_stable_s: replay.time_to_stable(period_s),
+        reconstruction_error_pct: (replay.reconstruction.0 > 0.0)
+            .then(|| 100.0 * (replay.reconstruction.1 / replay.reconstruction.0).sqrt()),
+        parameter_messages: replay.published.len() as u64,
+        parameters,
+        final_parameters: replay.published.last().copied(),
+        recorded_parameters: recorded.last().copied(),
+        same_as_recorded: !recorded.is_empty() && replay.published == recorded,
+        clouds: replay.clouds,
+    })
+}
+
+/// Plays the recording's telerobot ticks through a fresh node (a fresh one per session, as the
+/// daemon swaps them), installing each recorded camera frame at the tick it was installed.
+fn replay(
+    rec: &record::Recording,
+    settings: &node::TelerobotSettings,
+    start: [f64; 3],
+) -> Result<(TelerobotNode, Replay), EstimateFromError> {
     // Frames by capture time: the telerobot's, else as the operator received them.
     let mut clouds: HashMap<i64, _> = HashMap::new();
     for side in [Side::Operator, Side::Telerobot] {
@@ -156,40 +200,7 @@ pub fn estimate_from(
         node.step(tick.t_ns, tick.command_sample_time_ns, &sample.measured);
         replay.tick(&node, tick.session);
     }
-    let recorded: Vec<ParametersRec> = rec
-        .parameters
-        .iter()
-        .filter(|(side, _)| *side == Side::Telerobot)
-        .map(|(_, p)| *p)
-        .collect();
-    let latest = |e: Option<&mmt::estimator::Estimator>| e.and_then(|e| e.latest()).copied();
-    let parameters = parameter_report(
-        &scene,
-        [
-            latest(node.normal_estimator()).as_ref(),
-            latest(node.tangential_estimator()).as_ref(),
-        ],
-    );
-    let period_s = settings.period_ns as f64 * 1e-9;
-    Ok(EstimateFromReport {
-        file: path.display().to_string(),
-        recording: rec.describe(),
-        scene: scene.name.clone(),
-        ticks: replay.ticks,
-        seconds: replay.ticks as f64 * period_s,
-        cutoff_hz: scene.model.filter_cutoff_hz,
-        forgetting: scene.model.forgetting,
-        contact_onsets: replay.onsets,
-        time_to_stable_s: replay.time_to_stable(period_s),
-        reconstruction_error_pct: (replay.reconstruction.0 > 0.0)
-            .then(|| 100.0 * (replay.reconstruction.1 / replay.reconstruction.0).sqrt()),
-        parameter_messages: replay.published.len() as u64,
-        parameters,
-        final_parameters: replay.published.last().copied(),
-        recorded_parameters: recorded.last().copied(),
-        same_as_recorded: !recorded.is_empty() && replay.published == recorded,
-        clouds: replay.clouds,
-    })
+    Ok((node, replay))
 }
 
 /// The overrides, checked.

@@ -57,30 +57,7 @@ pub struct ExperimentArgs {
 }
 
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
-    let kind = Kind::parse(&args.name)?;
-    let scene = match &args.scene {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
-            Scene::from_toml(&text, &path.display().to_string())?
-        }
-        None => Scene::exp1(),
-    };
-    let mut config = ExperimentConfig::new(kind, scene);
-    if let Some(d) = args.delay_ms {
-        config.delay_ms = d;
-    }
-    config.seconds = args.seconds;
-    config.seed = args.seed;
-    if let Some(t) = args.trajectory {
-        config.trajectory = t;
-    }
-    config.operator.local_contact = !args.remote_contact;
-    config.operator.state_sync = !args.no_sync;
-    config.jitter_ms = args.jitter_ms;
-    config.loss = args.loss_pct / 100.0;
-    config.duplicate = args.duplicate_pct / 100.0;
-    config.reorder = args.reorder_pct / 100.0;
+    let config = config(&args)?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
@@ -148,4 +125,33 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The experiment the options describe.
+fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
+    let kind = Kind::parse(&args.name)?;
+    let scene = match &args.scene {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            Scene::from_toml(&text, &path.display().to_string())?
+        }
+        None => Scene::exp1(),
+    };
+    let mut config = ExperimentConfig::new(kind, scene);
+    if let Some(d) = args.delay_ms {
+        config.delay_ms = d;
+    }
+    config.seconds = args.seconds;
+    config.seed = args.seed;
+    if let Some(t) = &args.trajectory {
+        config.trajectory = t.clone();
+    }
+    config.operator.local_contact = !args.remote_contact;
+    config.operator.state_sync = !args.no_sync;
+    config.jitter_ms = args.jitter_ms;
+    config.loss = args.loss_pct / 100.0;
+    config.duplicate = args.duplicate_pct / 100.0;
+    config.reorder = args.reorder_pct / 100.0;
+    Ok(config)
 }
