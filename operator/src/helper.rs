@@ -55,7 +55,7 @@ pub struct Recording {
     pub reconnect_nodes: u64,
     /// Haptic-loop periods (tick start to the next tick's start) while the recorder recorded
     /// (`[0]`) and while it was paused (`[1]`): what recording and the live view cost the loop,
-    /// measured in one run (`operator demo --record-ab-s`). Empty without a recorder.
+    /// measured in one run (`demo --record-ab-s`). Empty without a recorder.
     pub periods: [rt::Histogram; 2],
 }
 
