@@ -18,10 +18,13 @@
 //!   helper threads (a blocking wait) and the network tasks (an async wait), fired by the caller or
 //!   by Ctrl-C / SIGTERM ([`Shutdown::on_signals`]).
 //!
+//! - [`exit::message`]: the one line a binary prints when it stops on an error (each cause once).
+//!
 //! What it is not: no knowledge of nodes, devices, links or the network. The netem shim, the
 //! QUIC transport and both daemons take their time from here.
 
 pub mod clock;
+pub mod exit;
 mod histogram;
 mod periodic;
 mod shutdown;

@@ -178,3 +178,31 @@ fn logs_to_a_pipe_are_plain_text() {
     assert!(status.success(), "{status:?}\n{log}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An unreadable scene file: the OS's reason once (it was printed twice: the message showed its
+/// cause and the error chain printed it again), exit status 1, no backtrace.
+#[test]
+fn a_bad_scene_path_says_why_once() {
+    let dir = std::env::temp_dir();
+    let ids = temp_dir("bad-scene");
+    let Command::GenCert(g) = parse(&["telerobot", "gen-cert", "--out", ids.to_str().unwrap()])
+    else {
+        panic!()
+    };
+    gen_cert(&g, &mut Vec::new()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_telerobot"))
+        .args(["run", "--listen", "127.0.0.1:0", "--identity"])
+        .arg(&ids)
+        .arg("--trust")
+        .arg(ids.join("telerobot.crt"))
+        .arg("--scene")
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.matches("os error 21").count(), 1, "{stderr}");
+    assert!(!stderr.contains("backtrace"), "{stderr}");
+    std::fs::remove_dir_all(&ids).unwrap();
+}
