@@ -103,7 +103,7 @@ pub struct RunArgs {
     /// SpaceMouse speed at full deflection [m/s].
     #[arg(long, value_name = "M_PER_S", default_value_t = 0.1)]
     pub spacemouse_speed: f64,
-    /// Commanded metres per device metre (translation only; > 0). Below 1 the tool moves less
+    /// Commanded metres per device metre (translation only; > 0, at most 20). Below 1 the tool moves less
     /// than the hand, for fine work; the device's clutch button repositions the hand.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     pub position_scale: f64,
@@ -126,9 +126,10 @@ pub struct RunArgs {
 /// Why `operator run`'s options are refused.
 #[derive(Debug, thiserror::Error)]
 pub enum RunArgsError {
-    /// `--position-scale` zero, negative or not finite.
+    /// `--position-scale` zero, negative, not finite or above 20.
     #[error(
-        "--position-scale {0}: expected a finite number > 0 (commanded metres per device metre; 1 = one-to-one)"
+        "--position-scale {0}: expected a finite number > 0 and at most 20 (commanded metres per \
+         device metre; 1 = one-to-one)"
     )]
     PositionScale(f64),
 }
@@ -137,7 +138,7 @@ impl RunArgs {
     /// The safety settings these options give.
     pub fn safety(&self) -> Result<SafetyConfig, RunArgsError> {
         let scale = self.position_scale;
-        if !(scale.is_finite() && scale > 0.0) {
+        if crate::safety::PositionScale::new(scale).is_err() {
             return Err(RunArgsError::PositionScale(scale));
         }
         Ok(SafetyConfig {

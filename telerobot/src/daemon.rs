@@ -162,6 +162,8 @@ pub struct SnapshotReport {
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
+    /// The motion guard's counters over every session.
+    pub guard: node::GuardStats,
 }
 
 /// A running telerobot daemon.
@@ -193,7 +195,9 @@ impl Telerobot {
         let settings = config.scene.telerobot_settings();
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge = Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
+        let bridge: Box<dyn node::RobotBridge> =
+            Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
+        let bridge = node::Guarded::new(bridge, settings.limits);
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -366,6 +370,7 @@ impl Telerobot {
                 node: last.node,
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
+                guard: last.guard,
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
@@ -404,6 +409,59 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Summary, DaemonError
     Ok(telerobot.stop())
 }
 
+/// Logs the motion guard's work once per episode (the loop only counts).
+#[derive(Debug, Default)]
+struct GuardLog {
+    logged: node::GuardStats,
+    implausible: u64,
+    implausible_session: u64,
+}
+
+impl GuardLog {
+    fn update(&mut self, s: &LoopSnapshot) {
+        let (g, was) = (s.guard, self.logged);
+        for (name, now, before) in [
+            ("workspace box", g.workspace, was.workspace),
+            ("largest step per tick", g.step, was.step),
+            ("largest speed", g.speed, was.speed),
+        ] {
+            if now.episodes > before.episodes {
+                tracing::warn!(
+                    session = s.session,
+                    limit = name,
+                    episodes = now.episodes,
+                    ticks = now.ticks,
+                    "a motion limit clamped the commanded motion"
+                );
+            }
+        }
+        if g.faults > was.faults {
+            tracing::error!(
+                session = s.session,
+                faults = g.faults,
+                recovered = g.recovered,
+                "the robot's state was not finite: the bridge was reset"
+            );
+        }
+        self.logged = g;
+        // Refusals are the node's (one per session): logged once per session.
+        let refused = s.node.implausible_commands;
+        if refused > 0 && (s.session != self.implausible_session || self.implausible == 0) {
+            tracing::warn!(
+                session = s.session,
+                refused,
+                "commands refused: implausible playout time (their clock jumped)"
+            );
+            self.implausible_session = s.session;
+        }
+        self.implausible = if s.session == self.implausible_session {
+            refused
+        } else {
+            0
+        };
+    }
+}
+
 /// The housekeeping thread's state.
 struct Keeper {
     settings: TelerobotSettings,
@@ -423,6 +481,7 @@ impl Keeper {
     fn run(mut self, stop: &Shutdown) -> Vec<i64> {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
+        let mut guard_log = GuardLog::default();
         while !stop.wait_timeout(HOUSEKEEPING) {
             while self.spares.retired.take().is_some() {}
             self.drain_latencies();
@@ -433,6 +492,7 @@ impl Keeper {
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
                 last = s;
+                guard_log.update(&last);
             }
             let now_connected = self.link.status().connected();
             if connected && !now_connected {

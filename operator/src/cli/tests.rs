@@ -198,7 +198,14 @@ fn position_scale_is_checked_and_applied() {
     assert_eq!(run_args(&[]).safety().unwrap().position_scale, 1.0);
     let args = run_args(&["--position-scale", "0.25"]);
     assert_eq!(args.safety().unwrap().position_scale, 0.25);
-    for (bad, shown) in [("0", "0"), ("-2", "-2"), ("nan", "NaN"), ("inf", "inf")] {
+    for (bad, shown) in [
+        ("0", "0"),
+        ("-2", "-2"),
+        ("nan", "NaN"),
+        ("inf", "inf"),
+        ("1e3", "1000"),
+        ("20.5", "20.5"),
+    ] {
         let flag = format!("--position-scale={bad}");
         let args = run_args(&[&flag]);
         // Refused before the device is opened or the network is looked at.
