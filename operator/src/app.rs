@@ -52,6 +52,10 @@ pub struct RunConfig {
     /// What the run knows beyond the wire (the demo): the scene's truth, the seed and the set
     /// delay.
     pub known: Option<Known>,
+    /// Where the run's records are streamed as it goes (`--out`, checked before the run):
+    /// `ticks.csv` and `measurements.csv`, flushed every [`crate::helper::STREAM_FLUSH`], so
+    /// that a killed run leaves them readable up to the last flush.
+    pub stream_to: Option<rt::OutDir>,
 }
 
 /// What the demo knows about the telerobot.
@@ -181,11 +185,19 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
 
     let exchange = std::sync::Arc::new(Exchange::default());
     let helper_stop = Shutdown::new();
+    let streams = match &config.stream_to {
+        Some(dir) => Some(helper::Streams::open(dir).map_err(|e| RunError::Io {
+            what: "the streamed records",
+            error: std::io::Error::other(e.to_string()),
+        })?),
+        None => None,
+    };
     let helper = helper::spawn(
         link.clone(),
         std::sync::Arc::clone(&exchange),
         session,
         config.node,
+        streams,
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;

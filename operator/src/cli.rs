@@ -7,7 +7,7 @@
 //! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
 //! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
 //!   [--position-scale F] [--device-origin X,Y,Z] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
-//!   the network flags it only opens the device and says what it is (exits 2).
+//!   the network flags it only opens the device and says what it is (exits 0: a device check).
 //!
 //! Not here: logging and Ctrl-C set-up (main), anything of the haptic loop.
 
@@ -310,8 +310,15 @@ fn render_into(
 
 /// `operator run`: with the network flags, runs the operator app ([`crate::app::run`]) until
 /// `--seconds` or `shutdown` and prints the report; without them, opens the device, says what it
-/// is and stops (exit code 2: nothing to run).
+/// is and stops (a device check: success when the device opened). `--out` is created and
+/// checked first, before anything else can take time.
 pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+    let dir = args
+        .run
+        .out
+        .as_deref()
+        .map(rt::OutDir::prepare)
+        .transpose()?;
     let safety = args.safety()?;
     let net = args.net.config()?;
     let options = OpenOptions {
@@ -344,7 +351,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             out,
             "operator run: no telerobot given (--connect, --identity, --trust); device opened and closed again."
         )?;
-        return Ok(ExitCode::from(2));
+        return Ok(ExitCode::SUCCESS);
     };
     let line = format!(
         "network: telerobot {} pinned to {}, as '{}'",
@@ -358,6 +365,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     }
     run::run_cmd(
         &args.run,
+        dir,
         net,
         args.device.clone(),
         options,

@@ -88,6 +88,8 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
         bar
     });
+    // Checked before the run: a path that cannot be written must not cost the run.
+    let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
     let (series, report) = run(&config, &mut |f| {
         if let Some(bar) = &bar {
@@ -103,16 +105,14 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         "wall_seconds": wall,
         "real_time_factor": report.sim_seconds / wall,
     });
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(dir) = &dir {
         for (name, bytes) in crate::report::files(&report, &series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+            dir.write_atomic(&name, &bytes)?;
         }
         // Wall-clock time lives apart so report.json is bit-for-bit reproducible.
-        std::fs::write(
-            dir.join("timing.json"),
-            serde_json::to_string_pretty(&timing)?,
+        dir.write_atomic(
+            "timing.json",
+            serde_json::to_string_pretty(&timing)?.as_bytes(),
         )?;
     }
     if args.json {
@@ -131,4 +131,40 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: ExperimentArgs,
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("mmt-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let cli = Cli::try_parse_from([
+            "mmt",
+            "exp1",
+            "--seconds",
+            "3000",
+            "--out",
+            file.to_str().unwrap(),
+        ])
+        .unwrap();
+        let started = Instant::now();
+        let e = run_cmd(cli.args).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(started.elapsed().as_secs() < 5, "the experiment ran first");
+        std::fs::remove_file(&file).unwrap();
+    }
 }

@@ -2,9 +2,8 @@
 //! report.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
 
@@ -74,6 +73,7 @@ impl LoopArgs {
 /// `operator run` with a telerobot: runs the app, prints and writes the report.
 pub(super) fn run_cmd(
     args: &LoopArgs,
+    dir: Option<rt::OutDir>,
     net: NetConfig,
     device: DeviceSpec,
     open: OpenOptions,
@@ -93,25 +93,20 @@ pub(super) fn run_cmd(
         node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
+        stream_to: dir.clone(),
     };
     let outcome = app::run(config, shutdown)?;
-    emit(&outcome, args.out.as_deref(), args.json, out)
+    emit(&outcome, dir.as_ref(), args.json, out)
 }
 
-/// Prints the report (table or JSON) and writes the files.
+/// Prints the report (table or JSON) and writes the files (each atomically), printing first:
+/// a file that cannot be written then costs the file, not the printed report.
 pub fn emit(
     outcome: &Outcome,
-    dir: Option<&Path>,
+    dir: Option<&rt::OutDir>,
     json: bool,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
-    if let Some(dir) = dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
-        }
-    }
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
     } else {
@@ -120,11 +115,16 @@ pub fn emit(
             "{}",
             report::table(&outcome.report, &report::PeerFigures::default())
         )?;
-        if let Some(dir) = dir {
+    }
+    if let Some(dir) = dir {
+        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
+            dir.write_atomic(&name, &bytes)?;
+        }
+        if !json {
             writeln!(
                 out,
                 "files: {0}/report.json, series.csv (plots: cargo run --release -p lab -- plot {0})",
-                dir.display()
+                dir.path().display()
             )?;
         }
     }

@@ -451,8 +451,8 @@ fn scaling_rejects_zero_negative_nan_and_inf() {
         assert!(SafetyLayer::new(&omega(), &cfg).is_err());
     }
     assert_eq!(s.stats().scale_rejections, 8);
-    s.set_position_scale(PositionScale::MAX).unwrap();
     assert_eq!(s.position_map().scale().get(), 2.0, "old scale kept");
+    s.set_position_scale(PositionScale::MAX).unwrap();
 }
 
 #[test]
