@@ -70,13 +70,13 @@ impl LoopArgs {
     }
 }
 
-/// `operator run` with a telerobot: runs the app, prints and writes the report.
+/// `operator run` with a telerobot: runs the app, prints and writes the report into `dir`
+/// (checked before: `--out`).
 pub(super) fn run_cmd(
     args: &LoopArgs,
     dir: Option<rt::OutDir>,
     net: NetConfig,
-    device: DeviceSpec,
-    open: OpenOptions,
+    (device, open): (DeviceSpec, OpenOptions),
     safety: SafetyConfig,
     shutdown: Shutdown,
     out: &mut dyn Write,
