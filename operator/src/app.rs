@@ -129,6 +129,7 @@ pub struct Outcome {
 
 /// Runs the operator until the run's length or `shutdown`, then reports.
 pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
+    let run_started = Instant::now();
     let mut device = open_device(&config.device, &config.open)?;
     let spec = device.spec().clone();
     let mut safety = SafetyLayer::new(&spec, &config.safety)?;
@@ -208,9 +209,11 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
     let start_ns = periodic.start_ns();
     let timing = periodic.timing();
-    let ticks = config
-        .seconds
-        .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64);
+    // What is left of `--seconds` after waiting for the session.
+    let ticks = config.seconds.map(|s| {
+        let left = (s - run_started.elapsed().as_secs_f64()).max(0.0);
+        (left * 1e9 / settings.period_ns as f64).round() as u64
+    });
     let haptic = HapticLoop {
         node,
         session,
@@ -292,7 +295,17 @@ fn wait_for_session(
         if shutdown.wait_timeout(Duration::from_millis(10)) {
             return Err(RunError::Stopped);
         }
-        if let Some(timeout) = config.first_session_timeout
+        // `--seconds` bounds the whole run, connected or not.
+        let bound = [
+            config.first_session_timeout,
+            config
+                .seconds
+                .and_then(|s| Duration::try_from_secs_f64(s).ok()),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        if let Some(timeout) = bound
             && waited.elapsed() > timeout
         {
             return Err(RunError::NoSession {

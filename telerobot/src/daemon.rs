@@ -82,6 +82,11 @@ impl RunConfig {
             self.scene_summary(),
         );
         config.tuning = self.tuning.clone();
+        config.trusted_labels = self
+            .trusted_operators
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect();
         config
     }
 

@@ -71,6 +71,18 @@ impl Clone for Identity {
     }
 }
 
+/// A certificate's short fingerprint: the first 8 bytes of the SHA-256 of its DER, in hex
+/// (`sha256:1a2b…`): what names an operator's identity in logs and refusals (its self-chosen
+/// name is not an identity).
+pub fn fingerprint(der: &[u8]) -> String {
+    let digest = ring::digest::digest(&ring::digest::SHA256, der);
+    let hex: String = digest.as_ref()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!("sha256:{hex}")
+}
+
 /// The certificate file of identity `name` in `dir`: `dir/<name>.crt`.
 pub fn cert_path(dir: &Path, name: &str) -> PathBuf {
     dir.join(format!("{name}.crt"))

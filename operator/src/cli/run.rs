@@ -16,7 +16,9 @@ use crate::safety::SafetyConfig;
 /// `operator run`'s run length, loop and report options.
 #[derive(Clone, Debug, Args)]
 pub struct LoopArgs {
-    /// Stop after this many seconds of haptic loop (default: run until Ctrl-C).
+    /// Stop after this many seconds (default: run until Ctrl-C). It bounds the whole run:
+    /// waiting for the telerobot (unreachable, or busy) counts, and the haptic loop runs for
+    /// what is left.
     #[arg(long, value_name = "S")]
     pub seconds: Option<f64>,
     /// Write report.json and series.csv into DIR (`mmt plot DIR` draws the plots).
