@@ -150,6 +150,9 @@ pub struct Summary {
     pub outbox_overwritten: u64,
     /// Link counters.
     pub link: LinkReport,
+    /// Times without commands (100 ms or more) between the first command and the last, across
+    /// sessions (a reconnect does not restart them; the time between two operators counts).
+    pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
 }
@@ -179,7 +182,7 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<Vec<i64>>>,
+    housekeeping: Option<JoinHandle<(Vec<i64>, transport::Outages)>>,
     shared: Arc<Housekeeping>,
     addr: SocketAddr,
     link: TelerobotLink,
@@ -284,6 +287,7 @@ impl Telerobot {
                 spare_at: None,
                 command_latency,
                 latencies: Vec::new(),
+                outages: CommandGaps::default(),
             };
             let stop = stop.clone();
             std::thread::Builder::new()
@@ -343,7 +347,7 @@ impl Telerobot {
         if let Some(camera) = self.camera.take() {
             let _ = camera.join();
         }
-        let mut latencies = self
+        let (mut latencies, outages) = self
             .housekeeping
             .take()
             .and_then(|h| h.join().ok())
@@ -382,6 +386,7 @@ impl Telerobot {
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),
+            outages,
             parameters,
         };
         let t = &summary.timing;
@@ -479,11 +484,43 @@ struct Keeper {
     spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
     latencies: Vec<i64>,
+    outages: CommandGaps,
+}
+
+/// Gaps in the commands, seen from the loop's snapshots (20 ms resolution).
+#[derive(Debug, Default)]
+struct CommandGaps {
+    /// `(session, commands)` of the last snapshot that showed a new command.
+    last: (u64, u64),
+    /// Its time \[ns\].
+    at_ns: Option<i64>,
+    outages: transport::Outages,
+}
+
+impl CommandGaps {
+    fn update(&mut self, s: &LoopSnapshot) {
+        let key = (s.session, s.node.commands);
+        if key == self.last || s.node.commands == 0 {
+            return;
+        }
+        if let Some(at) = self.at_ns
+            && self.outages.record(s.now_ns - at)
+        {
+            tracing::warn!(
+                session = s.session,
+                gap_ms = (s.now_ns - at) / 1_000_000,
+                outages = self.outages.count,
+                "commands resumed after an outage"
+            );
+        }
+        self.last = key;
+        self.at_ns = Some(s.now_ns);
+    }
 }
 
 impl Keeper {
-    /// Runs until `stop`; returns the command latencies \[ns\].
-    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
+    /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
+    fn run(mut self, stop: &Shutdown) -> (Vec<i64>, transport::Outages) {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
         let mut guard_log = GuardLog::default();
@@ -498,6 +535,7 @@ impl Keeper {
                     .unwrap_or_else(PoisonError::into_inner) = s;
                 last = s;
                 guard_log.update(&last);
+                self.outages.update(&last);
             }
             let now_connected = self.link.status().connected();
             if connected && !now_connected {
@@ -507,7 +545,7 @@ impl Keeper {
             self.keep_spare(&last, now_connected);
         }
         self.drain_latencies();
-        self.latencies
+        (self.latencies, self.outages.outages)
     }
 
     fn drain_latencies(&mut self) {

@@ -116,6 +116,17 @@ fn a_2_s_outage_heals_without_restart() {
     // No reconnection was needed on either side.
     let r = &outcome.report;
     assert_eq!((r.sessions, summary.sessions), (1, 1));
+    // The outage is told on both sides: one, about 2 s long (issue 11: it was hidden).
+    for (side, o) in [("operator", r.outages), ("telerobot", summary.outages)] {
+        assert_eq!(o.count, 1, "{side}: {o:?}");
+        assert!((1_700.0..=2_700.0).contains(&o.longest_ms), "{side}: {o:?}");
+    }
+    let marked = r.experiment.error_over_time.iter().filter(|w| w.outage);
+    assert!(
+        (2..=4).contains(&marked.count()),
+        "{:?}",
+        r.experiment.error_over_time
+    );
     // The outage in the operator's series: the longest run of commands without a measurement.
     let s = &outcome.series;
     let first = s.rendering.iter().position(|r| *r).unwrap();

@@ -25,7 +25,7 @@ use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
 use rt::{Summary, TimingReport};
 use serde::Serialize;
 use sim::scene::Scene;
-use transport::LinkReport;
+use transport::{LinkReport, Outages};
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
@@ -62,6 +62,9 @@ pub struct NetworkedReport {
     pub measurements: (u64, u64),
     /// Sessions the haptic loop ran (1 + reconnections).
     pub sessions: u64,
+    /// Times without measurements from the telerobot (100 ms or more) over the whole run,
+    /// across sessions: `link.max_gap_ms` is within a session, and a reconnect restarts it.
+    pub outages: Outages,
     /// Cloud frames indexed and refused.
     pub clouds: (u64, u64),
     /// What the safety layer did.
@@ -187,6 +190,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
     // No shadow node runs in the app: its figures would repeat the operator's.
     experiment.rms_error_pct_remote_contact = None;
     experiment.contact_switch_latency_ms.remote_only = None;
+    let outages = mark_outages(facts, rec, &mut experiment.error_over_time);
     let mut downlink: Vec<i64> = rec
         .measurements
         .iter()
@@ -210,6 +214,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             facts.measurements_overwritten,
         ),
         sessions: end.sessions,
+        outages,
         clouds: rec.clouds,
         safety: end.safety,
         renderers: end.renderers.clone(),
@@ -228,6 +233,22 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
+}
+
+/// The run's outages (from the measurements' arrivals, to the last tick), and each 1 s window
+/// of `windows` that overlaps one marked.
+fn mark_outages(facts: &RunFacts, rec: &Recording, windows: &mut [metrics::Window]) -> Outages {
+    let mut arrivals: Vec<i64> = rec.measurements.iter().map(|m| m.received_ns).collect();
+    arrivals.sort_unstable();
+    let ticks = rec.ticks.last().map_or(0, |t| t.index as i64 + 1);
+    let end_ns = facts.start_ns + ticks * facts.period_ns;
+    let (outages, spans) = Outages::from_arrivals(&arrivals, end_ns);
+    for w in windows {
+        let from = facts.start_ns + (w.t_s * 1e9).round() as i64;
+        let to = from + 1_000_000_000;
+        w.outage = spans.iter().any(|&(a, b)| a < to && b > from);
+    }
+    outages
 }
 
 /// The series, one entry per tick; ticks the loop skipped repeat the previous one (counted).
@@ -399,9 +420,29 @@ fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> st
         );
     }
     row(
-        "  longest gap between accepted datagrams",
+        "  longest gap between accepted datagrams, in a session",
         format!("{:.1} ms", l.max_gap_ms),
     );
+    let o = &r.outages;
+    row(
+        "outages (no measurement ≥ 100 ms), all sessions",
+        format!(
+            "{} · longest {:.0} ms · total {:.0} ms",
+            o.count, o.longest_ms, o.total_ms
+        ),
+    );
+    let marked = r
+        .experiment
+        .error_over_time
+        .iter()
+        .filter(|w| w.outage)
+        .count();
+    if marked > 0 {
+        row(
+            "  1 s error windows with an outage in them",
+            format!("{marked} (marked \"outage\" in report.json)"),
+        );
+    }
     row(
         "RTT smoothed / min",
         format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
