@@ -217,3 +217,45 @@ fn a_bridge_that_cannot_recover_is_reported_at_every_session_and_never_trusted()
     assert!(g.begin_session());
     assert_eq!(g.stats().faults, 2);
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Any f64, the awkward ones over-represented.
+    fn any_value() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+            Just(f64::NEG_INFINITY),
+            Just(1e306),
+            Just(-1e306),
+            Just(f64::MAX),
+            -1.0..1.0f64,
+            any::<f64>(),
+        ]
+    }
+
+    fn any_vec() -> impl Strategy<Value = Vec3> {
+        [any_value(), any_value(), any_value()]
+    }
+
+    proptest! {
+        /// Whatever the operator sends, tick after tick: the commanded position stays in the box
+        /// (once in), moves at most one step, and the commanded speed stays under the limit.
+        #[test]
+        fn every_target_is_bounded(targets in proptest::collection::vec((any_vec(), any_vec()), 1..200)) {
+            let l = limits();
+            let mut g = MotionGuard::new(l);
+            let mut at = [0.0; 3];
+            for (p, v) in targets {
+                let t = g.limit(&target(p, v), at);
+                prop_assert!(vec3::is_finite(t.position_m) && vec3::is_finite(t.velocity_m_per_s));
+                prop_assert!(l.contains(t.position_m), "{:?}", t.position_m);
+                prop_assert!(vec3::norm(vec3::sub(t.position_m, at)) <= l.max_step_m * (1.0 + 1e-9));
+                prop_assert!(vec3::norm(t.velocity_m_per_s) <= l.max_speed_m_per_s * (1.0 + 1e-9));
+                at = t.position_m;
+            }
+        }
+    }
+}
