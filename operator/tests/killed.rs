@@ -94,3 +94,47 @@ fn an_out_path_that_cannot_be_written_is_refused_before_the_run() {
     assert!(started.elapsed() < Duration::from_secs(10), "ran first");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Before: with nothing listening the operator retried forever despite `--seconds`, logged only
+/// idle timeouts at info, and its log file got colour escapes.
+#[test]
+fn a_telerobot_that_never_answers_is_named_at_warn_and_seconds_end_the_run() {
+    let dir = temp_dir("silent");
+    Identity::generate_files(&dir, "operator", &["operator"]).unwrap();
+    let (_, telerobot_crt, _) =
+        Identity::generate_files(&dir, "telerobot", &["telerobot"]).unwrap();
+    let closed = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = closed.local_addr().unwrap();
+    drop(closed);
+    let started = std::time::Instant::now();
+    let output = Command::new(env!("CARGO_BIN_EXE_operator"))
+        .args(["run", "--device", "scripted:exp1", "--seconds", "7"])
+        .arg("--connect")
+        .arg(addr.to_string())
+        .arg("--identity")
+        .arg(&dir)
+        .arg("--trust")
+        .arg(&telerobot_crt)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(started.elapsed() < Duration::from_secs(12), "{stderr}");
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr
+            .lines()
+            .any(|l| l.contains("WARN") && l.contains(&format!("no answer from {addr}"))),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!(
+            "no session with the telerobot at {addr} within 7s"
+        )),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains('\x1b'),
+        "colour escapes in a log that is not a terminal"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
