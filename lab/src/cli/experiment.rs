@@ -75,6 +75,17 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.jitter_ms = args.jitter_ms;
+    // Checked as the user wrote them (percent), before they become the harness's fractions.
+    for (flag, pct) in [
+        ("--loss-pct", args.loss_pct),
+        ("--duplicate-pct", args.duplicate_pct),
+        ("--reorder-pct", args.reorder_pct),
+    ] {
+        anyhow::ensure!(
+            pct.is_finite() && (0.0..50.0).contains(&pct),
+            "{flag} {pct}: expected a percentage in [0, 50)"
+        );
+    }
     config.loss = args.loss_pct / 100.0;
     config.duplicate = args.duplicate_pct / 100.0;
     config.reorder = args.reorder_pct / 100.0;
@@ -142,6 +153,16 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         args: ExperimentArgs,
+    }
+
+    /// Before: `--loss-pct 150` was refused as "loss = 1.5: a fraction".
+    #[test]
+    fn percentages_are_checked_as_percentages() {
+        for flag in ["--loss-pct", "--duplicate-pct", "--reorder-pct"] {
+            let cli = Cli::try_parse_from(["mmt", "exp1", flag, "150"]).unwrap();
+            let e = run_cmd(cli.args).unwrap_err().to_string();
+            assert_eq!(e, format!("{flag} 150: expected a percentage in [0, 50)"));
+        }
     }
 
     /// Before: `--out` naming a file was found after the whole run, and the run was lost.
