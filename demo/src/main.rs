@@ -15,7 +15,7 @@ fn main() -> ExitCode {
             }),
         )
         .with_writer(std::io::stderr)
-        // Colour only on a terminal: a log file gets no escape codes.
+        // Colour only on a terminal: a log file or a pipe gets plain text.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let shutdown = rt::Shutdown::new();

@@ -33,6 +33,7 @@ use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
 use crate::net::{self, NetConfig, TelerobotLink};
+use crate::watch::{CommandGaps, GuardLog};
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -176,20 +177,79 @@ pub struct SnapshotReport {
 
 /// A running telerobot daemon.
 pub struct Telerobot {
-    runtime: tokio::runtime::Runtime,
-    server: tokio::task::JoinHandle<()>,
-    net_stop: Shutdown,
+    network: Network,
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
     housekeeping: Option<JoinHandle<(Vec<i64>, transport::Outages)>>,
     shared: Arc<Housekeeping>,
-    addr: SocketAddr,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
+}
+
+/// The network side: its runtime and the QUIC server serving the loop's hand-off.
+struct Network {
+    runtime: tokio::runtime::Runtime,
+    server: tokio::task::JoinHandle<()>,
+    net_stop: Shutdown,
+    addr: SocketAddr,
     pins: Arc<transport::OperatorPins>,
+}
+
+impl Network {
+    /// Binds the server on its own runtime and starts serving `net_io`.
+    fn start(config: &RunConfig, net_io: net::NetIo) -> Result<Network, DaemonError> {
+        let runtime =
+            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
+        let server = {
+            let _entered = runtime.enter();
+            net::bind(config.net_config())?
+        };
+        let addr = server
+            .local_addr()
+            .map_err(io("the server's local address"))?;
+        let pins = server.pins();
+        let net_stop = Shutdown::new();
+        let server = {
+            let stop = net_stop.clone();
+            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
+        };
+        for (path, _) in &config.trusted_operators {
+            tracing::info!(file = %path.display(), "trusting operator certificate");
+        }
+        Ok(Network {
+            runtime,
+            server,
+            net_stop,
+            addr,
+            pins,
+        })
+    }
+}
+
+/// The camera thread, when the scene has a cloud: it renders frames of the scene's geometry
+/// into `feed` and sends them on `link`.
+fn start_camera(
+    config: &RunConfig,
+    feed: &Arc<CameraFeed>,
+    link: &TelerobotLink,
+    stop: &Shutdown,
+) -> Result<Option<JoinHandle<()>>, DaemonError> {
+    if config.scene.cloud.source == CloudKind::None {
+        return Ok(None);
+    }
+    let geometry = World::new(&config.scene, config.start_m, config.seed)?;
+    let camera = camera::spawn(
+        Camera::new(&config.scene, config.seed),
+        geometry,
+        Arc::clone(feed),
+        link.clone(),
+        stop.clone(),
+    )
+    .map_err(io("the camera thread"))?;
+    Ok(Some(camera))
 }
 
 /// What the housekeeping thread shares.
@@ -211,44 +271,12 @@ impl Telerobot {
             ..config.periodic
         };
         periodic_config.validate()?;
-        let runtime =
-            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
-        let server = {
-            let _entered = runtime.enter();
-            net::bind(config.net_config())?
-        };
-        let addr = server
-            .local_addr()
-            .map_err(io("the server's local address"))?;
-        let pins = server.pins();
-        let net_stop = Shutdown::new();
-        let server = {
-            let stop = net_stop.clone();
-            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
-        };
-        for (path, _) in &config.trusted_operators {
-            tracing::info!(file = %path.display(), "trusting operator certificate");
-        }
-
+        let network = Network::start(&config, net_io)?;
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = if config.scene.cloud.source == CloudKind::None {
-            None
-        } else {
-            let geometry = World::new(&config.scene, start, config.seed)?;
-            Some(
-                camera::spawn(
-                    Camera::new(&config.scene, config.seed),
-                    geometry,
-                    Arc::clone(&feed),
-                    link.clone(),
-                    stop.clone(),
-                )
-                .map_err(io("the camera thread"))?,
-            )
-        };
+        let camera = start_camera(&config, &feed, &link, &stop)?;
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
@@ -276,49 +304,39 @@ impl Telerobot {
                 ..LoopSnapshot::default()
             }),
         });
-        let housekeeping = {
-            let keeper = Keeper {
-                settings,
-                spares,
-                snapshots,
-                shared: Arc::clone(&shared),
-                link: link.clone(),
-                timing: Arc::clone(&timing),
-                spare_at: None,
-                command_latency,
-                latencies: Vec::new(),
-                outages: CommandGaps::default(),
-            };
-            let stop = stop.clone();
-            std::thread::Builder::new()
-                .name("housekeeping".to_owned())
-                .spawn(move || keeper.run(&stop))
-                .map_err(io("the housekeeping thread"))?
+        let keeper = Keeper {
+            settings,
+            spares,
+            snapshots,
+            shared: Arc::clone(&shared),
+            link: link.clone(),
+            timing: Arc::clone(&timing),
+            spare_at: None,
+            command_latency,
+            latencies: Vec::new(),
+            outages: CommandGaps::default(),
         };
-        tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+        let housekeeping = keeper.spawn(&stop)?;
+        tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
             period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
             "telerobot running (simulated bridge)");
         Ok(Telerobot {
-            runtime,
-            server,
-            net_stop,
+            network,
             stop,
             control: Some(control),
             camera,
             housekeeping: Some(housekeeping),
             shared,
-            addr,
             link,
             feed,
             timing,
             scene: config.scene,
-            pins,
         })
     }
 
     /// The address the server listens on.
     pub fn local_addr(&self) -> SocketAddr {
-        self.addr
+        self.network.addr
     }
 
     /// The loop as of its last snapshot (at most ~30 ms old).
@@ -337,7 +355,7 @@ impl Telerobot {
 
     /// Operator certificates the TLS handshake refused since start.
     pub fn untrusted_refusals(&self) -> u64 {
-        self.pins.rejections()
+        self.network.pins.rejections()
     }
 
     /// Stops everything (operators are told the telerobot shuts down) and returns the summary.
@@ -352,9 +370,10 @@ impl Telerobot {
             .take()
             .and_then(|h| h.join().ok())
             .unwrap_or_default();
-        self.net_stop.trigger();
-        let server = &mut self.server;
+        self.network.net_stop.trigger();
+        let server = &mut self.network.server;
         let _ = self
+            .network
             .runtime
             .block_on(async { tokio::time::timeout(Duration::from_secs(3), server).await });
         let last = end.as_ref().map_or_else(|| self.snapshot(), |e| e.last);
@@ -408,7 +427,7 @@ impl Drop for Telerobot {
     /// A daemon dropped without [`Telerobot::stop`] still stops its threads (without waiting).
     fn drop(&mut self) {
         self.stop.trigger();
-        self.net_stop.trigger();
+        self.network.net_stop.trigger();
     }
 }
 
@@ -417,59 +436,6 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Summary, DaemonError
     let telerobot = Telerobot::start(config)?;
     while !shutdown.wait_timeout(Duration::from_secs(3600)) {}
     Ok(telerobot.stop())
-}
-
-/// Logs the motion guard's work once per episode (the loop only counts).
-#[derive(Debug, Default)]
-struct GuardLog {
-    logged: node::GuardStats,
-    implausible: u64,
-    implausible_session: u64,
-}
-
-impl GuardLog {
-    fn update(&mut self, s: &LoopSnapshot) {
-        let (g, was) = (s.guard, self.logged);
-        for (name, now, before) in [
-            ("workspace box", g.workspace, was.workspace),
-            ("largest step per tick", g.step, was.step),
-            ("largest speed", g.speed, was.speed),
-        ] {
-            if now.episodes > before.episodes {
-                tracing::warn!(
-                    session = s.session,
-                    limit = name,
-                    episodes = now.episodes,
-                    ticks = now.ticks,
-                    "a motion limit clamped the commanded motion"
-                );
-            }
-        }
-        if g.faults > was.faults {
-            tracing::error!(
-                session = s.session,
-                faults = g.faults,
-                recovered = g.recovered,
-                "the robot's state was not finite: the bridge was reset"
-            );
-        }
-        self.logged = g;
-        // Refusals are the node's (one per session): logged once per session.
-        let refused = s.node.implausible_commands;
-        if refused > 0 && (s.session != self.implausible_session || self.implausible == 0) {
-            tracing::warn!(
-                session = s.session,
-                refused,
-                "commands refused: implausible playout time (their clock jumped)"
-            );
-            self.implausible_session = s.session;
-        }
-        self.implausible = if s.session == self.implausible_session {
-            refused
-        } else {
-            0
-        };
-    }
 }
 
 /// The housekeeping thread's state.
@@ -487,38 +453,19 @@ struct Keeper {
     outages: CommandGaps,
 }
 
-/// Gaps in the commands, seen from the loop's snapshots (20 ms resolution).
-#[derive(Debug, Default)]
-struct CommandGaps {
-    /// `(session, commands)` of the last snapshot that showed a new command.
-    last: (u64, u64),
-    /// Its time \[ns\].
-    at_ns: Option<i64>,
-    outages: transport::Outages,
-}
-
-impl CommandGaps {
-    fn update(&mut self, s: &LoopSnapshot) {
-        let key = (s.session, s.node.commands);
-        if key == self.last || s.node.commands == 0 {
-            return;
-        }
-        if let Some(at) = self.at_ns
-            && self.outages.record(s.now_ns - at)
-        {
-            tracing::warn!(
-                session = s.session,
-                gap_ms = (s.now_ns - at) / 1_000_000,
-                outages = self.outages.count,
-                "commands resumed after an outage"
-            );
-        }
-        self.last = key;
-        self.at_ns = Some(s.now_ns);
-    }
-}
-
 impl Keeper {
+    /// Starts the housekeeping thread.
+    fn spawn(
+        self,
+        stop: &Shutdown,
+    ) -> Result<JoinHandle<(Vec<i64>, transport::Outages)>, DaemonError> {
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("housekeeping".to_owned())
+            .spawn(move || self.run(&stop))
+            .map_err(io("the housekeeping thread"))
+    }
+
     /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
     fn run(mut self, stop: &Shutdown) -> (Vec<i64>, transport::Outages) {
         let mut last = LoopSnapshot::default();

@@ -53,6 +53,25 @@ pub struct ExperimentArgs {
     reorder_pct: f64,
 }
 
+/// The link's loss, duplication and reordering, checked as the user wrote them (percent) before
+/// they become the harness's fractions.
+fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<()> {
+    for (flag, pct) in [
+        ("--loss-pct", args.loss_pct),
+        ("--duplicate-pct", args.duplicate_pct),
+        ("--reorder-pct", args.reorder_pct),
+    ] {
+        anyhow::ensure!(
+            pct.is_finite() && (0.0..50.0).contains(&pct),
+            "{flag} {pct}: expected a percentage in [0, 50)"
+        );
+    }
+    config.loss = args.loss_pct / 100.0;
+    config.duplicate = args.duplicate_pct / 100.0;
+    config.reorder = args.reorder_pct / 100.0;
+    Ok(())
+}
+
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     let kind = Kind::parse(&args.name)?;
     let scene = match &args.scene {
@@ -69,26 +88,13 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     }
     config.seconds = args.seconds;
     config.seed = args.seed;
-    if let Some(t) = args.trajectory {
+    if let Some(t) = args.trajectory.clone() {
         config.trajectory = t;
     }
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.jitter_ms = args.jitter_ms;
-    // Checked as the user wrote them (percent), before they become the harness's fractions.
-    for (flag, pct) in [
-        ("--loss-pct", args.loss_pct),
-        ("--duplicate-pct", args.duplicate_pct),
-        ("--reorder-pct", args.reorder_pct),
-    ] {
-        anyhow::ensure!(
-            pct.is_finite() && (0.0..50.0).contains(&pct),
-            "{flag} {pct}: expected a percentage in [0, 50)"
-        );
-    }
-    config.loss = args.loss_pct / 100.0;
-    config.duplicate = args.duplicate_pct / 100.0;
-    config.reorder = args.reorder_pct / 100.0;
+    link_faults(&mut config, &args)?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);

@@ -56,8 +56,6 @@ pub(super) async fn run(connection: Connection, context: &Context) {
     let operator = hello.operator_name;
     let certificate = peer_certificate(&connection);
     let contender = Contender {
-        // How a refused operator is told who is in control: the certificate (its file and
-        // fingerprint: the identity), and the self-chosen name from the Hello.
         name: identity_of(&operator, certificate.as_deref(), &context.trusted),
         certificate,
         connection: connection.clone(),
