@@ -43,6 +43,8 @@ pub struct DemoConfig {
     /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
     /// operator connects to the telerobot directly: the loopback latency figure.
     pub via_shim: bool,
+    /// Where the operator streams its records as the run goes (the demo's `--out`).
+    pub stream_to: Option<rt::OutDir>,
 }
 
 impl Default for DemoConfig {
@@ -54,6 +56,7 @@ impl Default for DemoConfig {
             seed: 1,
             realtime_priority: None,
             via_shim: true,
+            stream_to: None,
         }
     }
 }
@@ -262,6 +265,7 @@ fn operator_config(
             seed: config.seed,
             delay_ms: config.delay_ms,
         }),
+        stream_to: config.stream_to.clone(),
     }
 }
 

@@ -20,5 +20,6 @@ pub mod cli;
 pub mod control;
 pub mod daemon;
 pub mod net;
+mod watch;
 
 pub use daemon::{DaemonError, RunConfig, Summary, Telerobot, run};

@@ -100,6 +100,18 @@ fn scene_and_loop_flags_are_checked() {
         e.contains("cannot read scene file /nonexistent/s.toml"),
         "{e}"
     );
+    // A directory: the OS's reason once in the printed chain (it was printed twice).
+    let dir = temp_dir("scene-dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = RunConfig::from_args(&run_args(&["--scene", dir.to_str().unwrap()])).unwrap_err();
+    let mut chain = e.to_string();
+    let mut source = std::error::Error::source(&e);
+    while let Some(s) = source {
+        chain = format!("{chain}: {s}");
+        source = s.source();
+    }
+    assert_eq!(chain.matches("os error 21").count(), 1, "{chain}");
+    std::fs::remove_dir_all(&dir).unwrap();
     let bad = temp_dir("scene").with_extension("toml");
     std::fs::write(&bad, "name = \"x\"\n[environment]\nmass_kg = -1.0\n").unwrap();
     let e = RunConfig::from_args(&run_args(&["--scene", bad.to_str().unwrap()]))

@@ -104,6 +104,7 @@ pub fn operator_config(
             seed: 1,
             delay_ms: known_delay_ms,
         }),
+        stream_to: None,
     }
 }
 
