@@ -76,6 +76,9 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         ..DemoConfig::default()
     };
     config.validate()?;
+    // Checked before the run: a path that cannot be written must not cost the session.
+    let dir = rt::OutDir::prepare(&args.out)?;
+    config.stream_to = Some(dir.clone());
     // Created (and checked) before the run; finished below, or dropped (closed) on an error.
     let recorder = args.record.start(record::Kind::Demo, rt::monotonic_ns())?;
     config.record = recorder.as_ref().map(record::Recorder::sink);
@@ -104,11 +107,8 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     drop(toggler);
     let outcome = outcome?;
     let recorded = recorder.map(record::Recorder::finish).transpose()?;
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     for (name, bytes) in files(&outcome.report, &outcome.series)? {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        dir.write_atomic(&name, &bytes)?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
@@ -117,7 +117,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         writeln!(
             out,
             "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
-            dir.display()
+            dir.path().display()
         )?;
     }
     say(args.json, out, recorded.as_ref().map(record::cli::summary))?;
@@ -171,5 +171,23 @@ mod tests {
         }
         let e = Cli::try_parse_from(["demo", "--realtime-priority", "100"]).unwrap_err();
         assert!(e.to_string().contains("--realtime-priority"), "{e}");
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("demo-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let args = Cli::try_parse_from(["demo", "--out", file.to_str().unwrap()]).unwrap();
+        let mut printed = Vec::new();
+        let started = std::time::Instant::now();
+        let e = run_cmd(&args, Shutdown::new(), &mut printed).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(printed.is_empty(), "the banner came before the check");
+        assert!(started.elapsed().as_secs() < 5, "the demo ran first");
+        std::fs::remove_file(&file).unwrap();
     }
 }

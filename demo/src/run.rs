@@ -45,6 +45,8 @@ pub struct DemoConfig {
     pub via_shim: bool,
     /// The recorder both sides record to (one file), if the demo records.
     pub record: Option<record::RecordSink>,
+    /// Where the operator streams its records as the run goes (the demo's `--out`).
+    pub stream_to: Option<rt::OutDir>,
 }
 
 impl Default for DemoConfig {
@@ -57,6 +59,7 @@ impl Default for DemoConfig {
             realtime_priority: None,
             via_shim: true,
             record: None,
+            stream_to: None,
         }
     }
 }
@@ -288,6 +291,7 @@ fn operator_config(
             .record
             .as_ref()
             .map(record::RecordSink::without_clouds),
+        stream_to: config.stream_to.clone(),
     }
 }
 

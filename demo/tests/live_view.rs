@@ -114,7 +114,9 @@ fn a_stalled_viewer_does_not_hold_up_the_haptic_loop() {
     // The recording is not the viewers': it kept everything.
     assert_eq!(report.dropped, 0);
     let timing = &outcome.report.run.loop_timing;
-    assert!(timing.ticks >= 5900, "{timing:?}");
+    // `--seconds` bounds the whole run (issue 11): the session's setup over the 100 ms link
+    // comes out of the 6 s.
+    assert!(timing.ticks >= 5000, "{timing:?}");
     assert_eq!(timing.skipped_ticks, 0, "{timing:?}");
     assert!(timing.period.max_us < 100_000.0, "{timing:?}");
     eprintln!(

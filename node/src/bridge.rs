@@ -61,4 +61,12 @@ pub trait RobotBridge: Send {
     fn tool_m(&self) -> Vec3;
     /// Moves the robot to `target` over one tick and reads its sensors.
     fn step(&mut self, target: &Target) -> BridgeSample;
+    /// Puts the robot back in a known, finite state with the tool at rest at `tool_m`, after a
+    /// fault (a reading that is not finite). Returns whether it could: the simulated world is
+    /// rebuilt; a real robot's bridge that cannot (the default) leaves the guard holding still
+    /// and the fault reported.
+    fn recover(&mut self, tool_m: Vec3) -> bool {
+        let _ = tool_m;
+        false
+    }
 }

@@ -7,6 +7,10 @@
 //!   it to the loop; drops the nodes the loop retired;
 //! - drains the loop's tick records and the telerobot's measurements into the recording the
 //!   report is computed from, each measurement stamped with the current clock-offset estimate;
+//!   with `--out`, appends both to `ticks.csv` and `measurements.csv` ([`Streams`]) and flushes
+//!   them every [`STREAM_FLUSH`]: a run killed with SIGKILL leaves both readable up to the last
+//!   flush (the series joins them: a measurement's `command_sample_time_ns` is
+//!   `start_ns + tick·period`, the first line's comment gives both).
 //! - with `--record`/`--live`, hands the same records, the clouds, the link statistics (10 Hz)
 //!   and the safety and device events (from the records' flags) to the recorder
 //!   ([`record::RecordSink`]): one batch per round, never waiting.
@@ -40,6 +44,95 @@ pub const MAX_RECORDED_TICKS: usize = 3_600_000;
 /// How often the link statistics go to the recording.
 const LINK_EVERY: Duration = Duration::from_millis(100);
 
+/// How often the streamed records are flushed to the operating system.
+pub const STREAM_FLUSH: Duration = Duration::from_millis(250);
+
+/// The run's records streamed to `--out` as they come.
+#[derive(Debug)]
+pub struct Streams {
+    ticks: rt::out::Stream,
+    measurements: rt::out::Stream,
+    line: String,
+    flushed: std::time::Instant,
+    warned: bool,
+}
+
+impl Streams {
+    /// Creates (truncates) `ticks.csv` and `measurements.csv` in `dir`.
+    pub fn open(dir: &rt::OutDir) -> Result<Streams, rt::OutError> {
+        Ok(Streams {
+            ticks: dir.stream(
+                "ticks.csv",
+                "tick,x_m,y_m,z_m,rendered_x_n,rendered_y_n,rendered_z_n,in_contact,rendering",
+            )?,
+            measurements: dir.stream(
+                "measurements.csv",
+                "received_ns,offset_ns,command_sample_time_ns,x_m,y_m,z_m,\
+                 measured_x_n,measured_y_n,measured_z_n,in_contact,estimator_stable",
+            )?,
+            line: String::with_capacity(256),
+            flushed: std::time::Instant::now(),
+            warned: false,
+        })
+    }
+
+    fn tick(&mut self, t: &TickRecord) {
+        use std::fmt::Write as _;
+        self.line.clear();
+        let (p, f) = (t.position_m, t.force_n);
+        let _ = write!(
+            self.line,
+            "{},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{},{}",
+            t.index,
+            p[0],
+            p[1],
+            p[2],
+            f[0],
+            f[1],
+            f[2],
+            u8::from(t.in_contact),
+            u8::from(t.rendering)
+        );
+        self.ticks.line(&self.line);
+    }
+
+    fn measurement(&mut self, m: &MeasurementRec) {
+        use std::fmt::Write as _;
+        self.line.clear();
+        let (p, f) = (m.position_m, m.force_on_tool_n);
+        let _ = write!(
+            self.line,
+            "{},{},{},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{},{}",
+            m.received_ns,
+            m.offset_ns.map_or(String::new(), |o| o.to_string()),
+            m.command_sample_time_ns,
+            p[0],
+            p[1],
+            p[2],
+            f[0],
+            f[1],
+            f[2],
+            u8::from(m.in_contact),
+            u8::from(m.estimator_stable)
+        );
+        self.measurements.line(&self.line);
+    }
+
+    fn flush(&mut self, now: bool) {
+        if !now && self.flushed.elapsed() < STREAM_FLUSH {
+            return;
+        }
+        self.flushed = std::time::Instant::now();
+        self.ticks.flush();
+        self.measurements.flush();
+        if !self.warned && (self.ticks.failed() || self.measurements.failed()) {
+            self.warned = true;
+            tracing::warn!(file = %self.ticks.path().display(),
+                "streaming the records failed (disk full?): the report at the end still comes");
+        }
+    }
+}
+
 /// Everything recorded during a run, for its report.
 #[derive(Debug, Default)]
 pub struct Recording {
@@ -68,6 +161,7 @@ pub fn spawn(
     session: u64,
     config: OperatorConfig,
     record: Option<RecordSink>,
+    streams: Option<Streams>,
     stop: Shutdown,
 ) -> std::io::Result<JoinHandle<Recording>> {
     std::thread::Builder::new()
@@ -88,11 +182,15 @@ pub fn spawn(
                 }),
                 last_position: [0.0; 3],
                 previous_tick: None,
+                streams,
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
             }
             helper.round();
+            if let Some(s) = &mut helper.streams {
+                s.flush(true);
+            }
             helper.recording
         })
 }
@@ -109,6 +207,7 @@ struct Helper {
     last_position: [f64; 3],
     /// The last tick's index and start [ns].
     previous_tick: Option<(u64, i64)>,
+    streams: Option<Streams>,
 }
 
 /// What goes to the recorder: this round's batch, and what the events are edges of.
@@ -135,6 +234,9 @@ impl Helper {
                 self.recording.periods[usize::from(!recording)].record(t.started_ns - started_ns);
             }
             self.previous_tick = Some((t.index, t.started_ns));
+            if let Some(s) = &mut self.streams {
+                s.tick(&t);
+            }
             let r = &mut self.recording;
             if r.ticks.len() < MAX_RECORDED_TICKS {
                 r.ticks.push(TickSample {
@@ -154,6 +256,9 @@ impl Helper {
         let offset_ns = self.link.stats().clock_offset_ns;
         while let Some(m) = self.link.measurement() {
             let rec = MeasurementRec::new(m.session, &m.message, m.received_ns, offset_ns);
+            if let Some(s) = &mut self.streams {
+                s.measurement(&rec);
+            }
             let r = &mut self.recording;
             if r.measurements.len() < MAX_RECORDED_TICKS {
                 r.measurements.push(rec.sample());
@@ -165,6 +270,9 @@ impl Helper {
         if let Some(f) = self.record.as_mut().filter(|_| recording) {
             f.link(&self.link);
             f.flush();
+        }
+        if let Some(s) = &mut self.streams {
+            s.flush(false);
         }
     }
 

@@ -6,7 +6,9 @@
 //!    a command of a newer session swaps in a fresh node (new operator, new clock, new model);
 //! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread);
 //! 3. the node says where the robot goes (the command whose turn it is, or hold still when the
-//!    newest command is older than 50 ms), the bridge moves and measures;
+//!    newest command is older than 50 ms); the motion guard bounds it (`node::guard`: workspace
+//!    box, step, speed; a reading not finite is a fault, the bridge recovers); the bridge moves
+//!    and measures;
 //! 4. the node steps with the measurement; its messages go to the network task's outbox while an
 //!    operator is connected;
 //! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread; with `--record` or
@@ -19,7 +21,7 @@
 use std::sync::Arc;
 
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use node::{BridgeSample, RobotBridge, Target, TelerobotSettings};
+use node::{BridgeSample, GuardStats, Guarded, RobotBridge, Target, TelerobotSettings};
 use protocol::telerobot_to_operator::{Contact, Datagram, Measurement, Parameters, StateSync};
 use record::schema::EstimatorSnapshot;
 use rt::{Periodic, Shutdown, Tick};
@@ -50,6 +52,8 @@ pub struct LoopSnapshot {
     pub stable: bool,
     /// Nodes built on the loop thread because no spare was ready (should stay 0).
     pub inline_node_builds: u64,
+    /// The motion guard's counters, since the daemon started (every session).
+    pub guard: GuardStats,
 }
 
 /// Tick records the housekeeping thread may lag behind by: 8 s at 1 kHz.
@@ -103,7 +107,8 @@ impl Default for Spares {
 pub(crate) struct ControlLoop {
     pub(crate) node: Box<TelerobotNode>,
     pub(crate) settings: TelerobotSettings,
-    pub(crate) bridge: Box<dyn RobotBridge>,
+    /// The robot, behind the motion guard (`node::guard`).
+    pub(crate) bridge: Guarded<Box<dyn RobotBridge>>,
     pub(crate) link: TelerobotLink,
     pub(crate) camera: Arc<CameraFeed>,
     pub(crate) spares: Arc<Spares>,
@@ -134,7 +139,7 @@ impl ControlLoop {
             self.tick(tick, &mut state);
         }
         LoopEnd {
-            last: state.snapshot(&self.node),
+            last: state.snapshot(&self.node, self.bridge.stats()),
             node: self.node,
         }
     }
@@ -149,6 +154,8 @@ impl ControlLoop {
                 if state.session != 0 {
                     self.fresh_node(state);
                 }
+                // Whatever the last session left: a robot not finite is recovered and reported.
+                self.bridge.begin_session();
                 state.session = c.session;
             }
             let header = c.message.header;
@@ -197,7 +204,8 @@ impl ControlLoop {
         state.holding = target.holding;
         state.tool_m = sample.tool_m;
         if tick.index.is_multiple_of(SNAPSHOT_EVERY) {
-            self.snapshots.push(state.snapshot(&self.node));
+            self.snapshots
+                .push(state.snapshot(&self.node, self.bridge.stats()));
         }
     }
 
@@ -232,7 +240,7 @@ struct State {
 }
 
 impl State {
-    fn snapshot(&self, node: &TelerobotNode) -> LoopSnapshot {
+    fn snapshot(&self, node: &TelerobotNode, guard: GuardStats) -> LoopSnapshot {
         LoopSnapshot {
             tick: self.tick,
             now_ns: self.now_ns,
@@ -242,6 +250,7 @@ impl State {
             node: node.stats(),
             stable: node.is_stable(),
             inline_node_builds: self.inline_node_builds,
+            guard,
         }
     }
 }

@@ -36,6 +36,7 @@ use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE};
 use crate::net::{self, NetConfig, TelerobotLink};
 use crate::recording::{self, Forward};
+use crate::watch::{CommandGaps, GuardLog};
 use record::RecordSink;
 
 /// How often the housekeeping thread wakes.
@@ -89,6 +90,11 @@ impl RunConfig {
             self.scene_summary(),
         );
         config.tuning = self.tuning.clone();
+        config.trusted_labels = self
+            .trusted_operators
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect();
         config
     }
 
@@ -152,6 +158,9 @@ pub struct Summary {
     pub outbox_overwritten: u64,
     /// Link counters.
     pub link: LinkReport,
+    /// Times without commands (100 ms or more) between the first command and the last, across
+    /// sessions (a reconnect does not restart them; the time between two operators counts).
+    pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
 }
@@ -169,6 +178,8 @@ pub struct SnapshotReport {
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
+    /// The motion guard's counters over every session.
+    pub guard: node::GuardStats,
 }
 
 /// A running telerobot daemon.
@@ -177,7 +188,7 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<Vec<i64>>>,
+    housekeeping: Option<JoinHandle<(Vec<i64>, transport::Outages)>>,
     shared: Arc<Housekeeping>,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
@@ -262,7 +273,9 @@ impl Telerobot {
         let settings = config.scene.telerobot_settings();
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge = Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
+        let bridge: Box<dyn node::RobotBridge> =
+            Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
+        let bridge = node::Guarded::new(bridge, settings.limits);
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -315,6 +328,7 @@ impl Telerobot {
             command_latency,
             latencies: Vec::new(),
             record: config.record.clone().zip(records).map(Forward::new),
+            outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
         tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
@@ -366,7 +380,7 @@ impl Telerobot {
         if let Some(camera) = self.camera.take() {
             let _ = camera.join();
         }
-        let mut latencies = self
+        let (mut latencies, outages) = self
             .housekeeping
             .take()
             .and_then(|h| h.join().ok())
@@ -399,12 +413,14 @@ impl Telerobot {
                 node: last.node,
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
+                guard: last.guard,
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),
+            outages,
             parameters,
         };
         if let Some(sink) = &self.record {
@@ -454,11 +470,15 @@ struct Keeper {
     command_latency: Arc<Mailbox<i64>>,
     latencies: Vec<i64>,
     record: Option<Forward>,
+    outages: CommandGaps,
 }
 
 impl Keeper {
     /// Starts the housekeeping thread.
-    fn spawn(self, stop: &Shutdown) -> Result<JoinHandle<Vec<i64>>, DaemonError> {
+    fn spawn(
+        self,
+        stop: &Shutdown,
+    ) -> Result<JoinHandle<(Vec<i64>, transport::Outages)>, DaemonError> {
         let stop = stop.clone();
         std::thread::Builder::new()
             .name("housekeeping".to_owned())
@@ -466,10 +486,11 @@ impl Keeper {
             .map_err(io("the housekeeping thread"))
     }
 
-    /// Runs until `stop`; returns the command latencies \[ns\].
-    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
+    /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
+    fn run(mut self, stop: &Shutdown) -> (Vec<i64>, transport::Outages) {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
+        let mut guard_log = GuardLog::default();
         while !stop.wait_timeout(HOUSEKEEPING) {
             while self.spares.retired.take().is_some() {}
             self.drain_latencies();
@@ -480,6 +501,8 @@ impl Keeper {
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
                 last = s;
+                guard_log.update(&last);
+                self.outages.update(&last);
             }
             let now_connected = self.link.status().connected();
             if connected && !now_connected {
@@ -495,7 +518,7 @@ impl Keeper {
         if let Some(f) = &mut self.record {
             f.round(&self.link);
         }
-        self.latencies
+        (self.latencies, self.outages.outages)
     }
 
     fn drain_latencies(&mut self) {

@@ -21,5 +21,6 @@ pub mod control;
 pub mod daemon;
 pub mod net;
 mod recording;
+mod watch;
 
 pub use daemon::{DaemonError, RunConfig, Summary, Telerobot, run};

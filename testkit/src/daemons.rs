@@ -106,6 +106,7 @@ pub fn operator_config(
             delay_ms: known_delay_ms,
         }),
         record: None,
+        stream_to: None,
     }
 }
 

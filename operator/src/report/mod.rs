@@ -14,7 +14,7 @@ use protocol::telerobot_to_operator::{ParameterSet, Parameters};
 use rt::{Summary, TimingReport};
 use serde::Serialize;
 use sim::scene::Scene;
-use transport::LinkReport;
+use transport::{LinkReport, Outages};
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
@@ -51,6 +51,9 @@ pub struct NetworkedReport {
     pub measurements: (u64, u64),
     /// Sessions the haptic loop ran (1 + reconnections).
     pub sessions: u64,
+    /// Times without measurements from the telerobot (100 ms or more) over the whole run,
+    /// across sessions: `link.max_gap_ms` is within a session, and a reconnect restarts it.
+    pub outages: Outages,
     /// Cloud frames indexed and refused.
     pub clouds: (u64, u64),
     /// What the safety layer did.
@@ -173,8 +176,10 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
     run.frame = end.frame.map(|f| [f.normal, f.tangent1, f.tangent2]);
     let nodes = node_info(facts.truth.as_ref(), end);
     let (series, figures) = networked::figures(&run, &rec.ticks, &rec.measurements, nodes);
+    let mut experiment = figures.experiment;
+    let outages = mark_outages(&run, rec, &mut experiment.error_over_time);
     let report = NetworkedReport {
-        experiment: figures.experiment,
+        experiment,
         measured_delay_ms: figures.measured_delay_ms,
         delay_estimate: figures.delay_estimate,
         set_delay_ms: run.set_delay_ms,
@@ -188,6 +193,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             facts.measurements_overwritten,
         ),
         sessions: end.sessions,
+        outages,
         clouds: rec.clouds,
         safety: end.safety,
         renderers: end.renderers.clone(),
@@ -206,6 +212,22 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
+}
+
+/// The run's outages (from the measurements' arrivals, to the last tick), and each 1 s window
+/// of `windows` that overlaps one marked.
+fn mark_outages(run: &NetworkedRun, rec: &Recording, windows: &mut [metrics::Window]) -> Outages {
+    let mut arrivals: Vec<i64> = rec.measurements.iter().map(|m| m.received_ns).collect();
+    arrivals.sort_unstable();
+    let ticks = rec.ticks.last().map_or(0, |t| t.index as i64 + 1);
+    let end_ns = run.start_ns + ticks * run.period_ns;
+    let (outages, spans) = Outages::from_arrivals(&arrivals, end_ns);
+    for w in windows {
+        let from = run.start_ns + (w.t_s * 1e9).round() as i64;
+        let to = from + 1_000_000_000;
+        w.outage = spans.iter().any(|&(a, b)| a < to && b > from);
+    }
+    outages
 }
 
 /// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the
