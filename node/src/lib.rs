@@ -12,6 +12,8 @@
 //! - [`operator::OperatorNode`]: device position → contact on the latest received cloud (remote
 //!   contact as fallback) → renderers with the latest accepted parameters → force and a command;
 //!   a short history to rewind and replay.
+//! - [`guard::CommandGuard`]: the command limits every robot bridge sits behind (no command
+//!   before a state, hold on a stale state, workspace box, maximum step and speed), counted.
 //! - Settings: [`TelerobotSettings`] from the telerobot's scene, [`OperatorSettings`] from the
 //!   `Welcome` alone; conversions between the core's types and the wire's.
 //!
@@ -26,6 +28,7 @@
 //! crate is one [`RobotBridge`]), no numerics of its own (`mmt`'s).
 
 mod bridge;
+pub mod guard;
 mod history;
 pub mod operator;
 mod playout;
@@ -34,7 +37,8 @@ pub mod telerobot;
 mod tracker;
 mod wire;
 
-pub use bridge::{BridgeSample, RobotBridge, RobotSample, Target};
+pub use bridge::{BridgeSample, Reading, RobotBridge, RobotSample, Target};
+pub use guard::{CommandGuard, CommandLimits, GuardStats};
 pub use settings::{
     KnownSurface, OperatorSettings, RATE_RANGE_HZ, SettingsError, TelerobotSettings,
 };

@@ -38,11 +38,15 @@
 //! r3_m = 0.03
 //! [sensors]
 //! preset = "franka-like"      # franka-like | clean
+//! [limits]                    # command limits, base frame (see `limits`); all optional
+//! max_speed_m_per_s = 0.5
 //! ```
 
+mod limits;
 mod settings;
 mod validate;
 
+pub use limits::{DEFAULT_WORKSPACE_HALF_M, LimitsSection};
 pub use validate::SceneError;
 
 use crate::SensorNoise;
@@ -77,6 +81,9 @@ pub struct Scene {
     /// Loop rates.
     #[serde(default)]
     pub rates: Rates,
+    /// Command limits of every robot bridge.
+    #[serde(default)]
+    pub limits: LimitsSection,
 }
 
 /// Ground truth of the simulated object (thesis set-up 1), keyed as the issue fixes them.

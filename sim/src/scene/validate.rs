@@ -304,6 +304,7 @@ impl Scene {
             m.forgetting > 0.99 && m.forgetting <= 1.0,
             "in (0.99, 1]",
         )?;
+        self.validate_limits()?;
         Ok(())
     }
 }
