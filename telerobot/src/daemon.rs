@@ -18,8 +18,8 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
-use node::TelerobotSettings;
 use node::telerobot::TelerobotNode;
+use node::{CommandGuard, CommandLimits, GuardStats, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
@@ -33,6 +33,7 @@ use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
 use crate::net::{self, NetConfig, TelerobotLink};
+use crate::robot::{self, RobotConfig};
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -62,6 +63,10 @@ pub struct RunConfig {
     pub periodic: PeriodicConfig,
     /// `SCHED_FIFO` priority of the loop thread, if wanted (needs `CAP_SYS_NICE`).
     pub realtime_priority: Option<u8>,
+    /// Which robot: the simulated world or a ROS 2 robot.
+    pub robot: RobotConfig,
+    /// The command limits every bridge sits behind (the scene's `[limits]`, flags over them).
+    pub limits: CommandLimits,
 }
 
 impl RunConfig {
@@ -104,6 +109,12 @@ pub enum DaemonError {
     /// The simulated world could not be built from the scene.
     #[error("simulated world: {0}")]
     Sim(#[from] sim::SimError),
+    /// The ROS 2 graph or an endpoint on it.
+    #[error(transparent)]
+    Ros2(#[from] ros2::GraphError),
+    /// The command limits.
+    #[error(transparent)]
+    Limits(#[from] node::guard::LimitsError),
     /// The server could not start.
     #[error(transparent)]
     Net(#[from] net::NetError),
@@ -147,6 +158,8 @@ pub struct Summary {
     pub link: LinkReport,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
+    /// The ROS 2 bridge's report (`--robot ros2`).
+    pub robot: Option<ros2::BridgeReport>,
 }
 
 /// [`LoopSnapshot`] for reports.
@@ -162,6 +175,10 @@ pub struct SnapshotReport {
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
+    /// What the command guard did: every limit that acted, counted.
+    pub guard: GuardStats,
+    /// New robot samples the node stepped on.
+    pub fresh_samples: u64,
 }
 
 /// A running telerobot daemon.
@@ -180,6 +197,7 @@ pub struct Telerobot {
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
     pins: Arc<transport::OperatorPins>,
+    robot: Option<ros2::BridgeMonitor>,
 }
 
 /// What the housekeeping thread shares.
@@ -193,7 +211,15 @@ impl Telerobot {
         let settings = config.scene.telerobot_settings();
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge = Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
+        let guard = CommandGuard::new(config.limits)?;
+        let built = robot::build(
+            &config.robot,
+            &config.scene,
+            &settings,
+            start,
+            config.seed,
+            None,
+        )?;
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -246,7 +272,9 @@ impl Telerobot {
         let control = ControlLoop {
             node,
             settings: settings.clone(),
-            bridge,
+            bridge: built.bridge,
+            guard,
+            outlet: built.outlet,
             link: link.clone(),
             camera: Arc::clone(&feed),
             spares: Arc::clone(&spares),
@@ -282,9 +310,14 @@ impl Telerobot {
                 .spawn(move || keeper.run(&stop))
                 .map_err(io("the housekeeping thread"))?
         };
+        let l = &config.limits;
         tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
             period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
-            "telerobot running (simulated bridge)");
+            "telerobot running ({})", built.description);
+        tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
+            max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
+            state_timeout_ms = l.state_timeout_ns as f64 * 1e-6,
+            "command limits (every limit that acts is counted and logged once per episode)");
         Ok(Telerobot {
             runtime,
             server,
@@ -300,6 +333,7 @@ impl Telerobot {
             timing,
             scene: config.scene,
             pins,
+            robot: built.monitor,
         })
     }
 
@@ -366,6 +400,8 @@ impl Telerobot {
                 node: last.node,
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
+                guard: last.guard,
+                fresh_samples: last.fresh_samples,
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
@@ -373,6 +409,7 @@ impl Telerobot {
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),
             parameters,
+            robot: self.robot.as_ref().map(|m| m.report()),
         };
         let t = &summary.timing;
         tracing::info!(
@@ -432,6 +469,7 @@ impl Keeper {
                     .snapshot
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
+                log_guard(&last.guard, &s.guard);
                 last = s;
             }
             let now_connected = self.link.status().connected();
@@ -489,5 +527,31 @@ impl Keeper {
             loop_overruns = t.overruns,
             "session ended; the robot holds still until the next operator"
         );
+    }
+}
+
+/// Logs each command-guard rule once when it starts acting (from two snapshots' counters, off
+/// the loop's thread): an episode that began and ended between snapshots is logged too.
+fn log_guard(before: &GuardStats, now: &GuardStats) {
+    for ((rule, b), (_, n)) in before.trips().iter().zip(now.trips()) {
+        if n.episodes > b.episodes {
+            if *rule == "stale_state" {
+                tracing::warn!(
+                    episode = n.episodes,
+                    "no robot state for longer than the timeout: holding the last commanded \
+                     pose, estimation paused until states return"
+                );
+            } else {
+                tracing::warn!(
+                    rule,
+                    episode = n.episodes,
+                    ticks_so_far = n.ticks,
+                    "command limit acting: the command was clamped (counted in the report)"
+                );
+            }
+        }
+    }
+    if before.no_state_ticks == 0 && now.no_state_ticks > 0 && now.ticks == now.no_state_ticks {
+        tracing::info!("waiting for the robot's first state: nothing is commanded until it comes");
     }
 }
