@@ -28,6 +28,8 @@ enum Command {
     Estimate(cli::estimate::EstimateArgs),
     /// The renderer on extreme and garbage inputs.
     Stress(cli::stress::StressArgs),
+    /// Draw the force, error and spectrum plots of an `operator run --out DIR` directory.
+    Plot(cli::plot::PlotArgs),
     /// Error against run time per integrator and step size, on typical, stiff and extreme sets.
     WorkPrecision(cli::work_precision::WorkPrecisionArgs),
 }
@@ -39,6 +41,7 @@ fn main() -> Result<()> {
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),
         Command::Stress(args) => cli::stress::run(args),
+        Command::Plot(args) => cli::plot::run(&args),
         Command::WorkPrecision(args) => cli::work_precision::run(args),
     }
 }

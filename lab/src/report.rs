@@ -2,7 +2,7 @@
 //! Built in memory; the caller writes them.
 
 use metrics::spectrum::spectrum;
-use metrics::{ExperimentReport, Series};
+use metrics::{ExperimentReport, Series, Window};
 use mmt::vec3;
 
 use crate::plot::{Panel, PlotError, Series as Line, png, svg};
@@ -15,9 +15,17 @@ pub fn files(r: &ExperimentReport, s: &Series) -> Result<Vec<(String, Vec<u8>)>,
         ("report.json".to_string(), json.into_bytes()),
         ("series.csv".to_string(), s.to_csv().into_bytes()),
     ];
+    out.extend(plots(s, &r.error_over_time)?);
+    Ok(out)
+}
+
+/// The `force`, `error` and `spectrum` plots of a series and its error over time, each as SVG
+/// and PNG.
+pub fn plots(s: &Series, error_over_time: &[Window]) -> Result<Vec<(String, Vec<u8>)>, PlotError> {
+    let mut out = Vec::new();
     for (name, panels, columns, size) in [
         ("force", force_panels(s), 1, (1400, 800)),
-        ("error", error_panels(r), 1, (1000, 450)),
+        ("error", error_panels(error_over_time), 1, (1000, 450)),
         ("spectrum", spectrum_panels(s), 1, (1000, 550)),
     ] {
         out.push((
@@ -78,7 +86,7 @@ fn force_panels(s: &Series) -> Vec<Panel> {
     panels
 }
 
-fn error_panels(r: &ExperimentReport) -> Vec<Panel> {
+fn error_panels(error_over_time: &[Window]) -> Vec<Panel> {
     vec![Panel {
         title: "RMS error over run time (1 s windows)".into(),
         x_label: "time [s]".into(),
@@ -87,8 +95,7 @@ fn error_panels(r: &ExperimentReport) -> Vec<Panel> {
         log_y: true,
         series: vec![Line {
             name: "error".into(),
-            points: r
-                .error_over_time
+            points: error_over_time
                 .iter()
                 .filter_map(|w| w.rms_error_pct.map(|e| (w.t_s + 0.5, e)))
                 .collect(),

@@ -171,7 +171,7 @@ pub struct ContactLatency {
 }
 
 /// An error value over a window.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Window {
     /// Window start [s].
     pub t_s: f64,
@@ -537,46 +537,4 @@ pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<Paramet
         });
     }
     out
-}
-
-impl Series {
-    /// The series as CSV: one row per operator tick.
-    pub fn to_csv(&self) -> String {
-        use std::fmt::Write;
-        let mut out = String::with_capacity(self.len() * 200);
-        out.push_str("t_s,x_m,y_m,z_m,measured_x_n,measured_y_n,measured_z_n,rendered_x_n,rendered_y_n,rendered_z_n,rendered_remote_x_n,rendered_remote_y_n,rendered_remote_z_n,contact_true,contact_local,contact_remote,rendering,true_x_n,true_y_n,true_z_n\n");
-        let b = |v: bool| if v { 1 } else { 0 };
-        for i in 0..self.len() {
-            let p = self.position[i];
-            let m = self.measured[i].map_or([f64::NAN; 3], |m| m);
-            let r = self.rendered[i];
-            let q = self.rendered_remote[i];
-            let t = self.true_force[i].map_or([f64::NAN; 3], |t| t);
-            let _ = writeln!(
-                out,
-                "{:.3},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{},{},{},{},{:.5},{:.5},{:.5}",
-                i as f64 * self.dt_s(),
-                p[0],
-                p[1],
-                p[2],
-                m[0],
-                m[1],
-                m[2],
-                r[0],
-                r[1],
-                r[2],
-                q[0],
-                q[1],
-                q[2],
-                self.contact_true[i].map_or(-1, b),
-                b(self.contact_local[i]),
-                b(self.contact_remote[i]),
-                b(self.rendering[i]),
-                t[0],
-                t[1],
-                t[2],
-            );
-        }
-        out
-    }
 }

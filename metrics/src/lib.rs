@@ -11,6 +11,7 @@
 //! What it is not: no plots (those are `lab`'s), no files, no clock.
 
 mod analyse;
+mod csv;
 pub mod spectrum;
 mod table;
 
@@ -18,4 +19,5 @@ pub use analyse::{
     BANDS, Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series,
     ThesisFigures, Window, analyse, parameter_report,
 };
+pub use csv::{CSV_HEADER, CsvError};
 pub use table::table;

@@ -92,41 +92,38 @@ impl History {
             .is_some_and(|k| self.entries[self.index(k)].in_contact)
     }
 
-    /// Rewinds the renderers and replays to the newest tick; returns the ticks replayed.
-    ///
-    /// - With `sync` (per axis: deflection, mass velocity, gain): the renderers are put back to
-    ///   their state after the tick stamped `from_ns`, the sync is blended in, and every later
-    ///   tick is replayed.
-    /// - With `from_onset`: the renderers are put back to their state before the tick stamped
-    ///   `from_ns` (or, if it is older than the history, before the oldest tick held) and that tick
-    ///   and every later one are replayed — with the parameters they hold now.
-    pub(super) fn replay_from(
-        &mut self,
-        from_ns: i64,
-        _now_ns: i64,
-        tangential: &mut [Tangential; 2],
-        sync: Option<[(f64, f64, f64); 2]>,
-        from_onset: bool,
-    ) -> usize {
+    /// Rewinds the renderers as `replay` says and replays every later tick held, with the
+    /// parameters the renderers hold now; returns the ticks replayed (0 when the tick to start
+    /// from is no longer held, or fewer than two ticks are).
+    pub(super) fn replay(&mut self, replay: Replay, tangential: &mut [Tangential; 2]) -> usize {
         if self.len < 2 {
             return 0;
         }
-        let start = match (self.find(from_ns), from_onset) {
-            (Some(k), false) => k,
-            (None, false) => return 0,
-            // Restore the state after the tick before the onset, replay from the onset.
-            (Some(k), true) => k.max(1) - 1,
-            (None, true) if self.entries[self.index(0)].time_ns < from_ns => return 0,
-            (None, true) => 0,
+        let start = match replay {
+            Replay::Correct { at_ns, .. } => match self.find(at_ns) {
+                Some(k) => k,
+                None => return 0,
+            },
+            // The state after the tick before the onset; the onset tick is replayed too. An
+            // onset older than the history replays all it holds; a newer one not held, nothing.
+            Replay::FromOnset { onset_ns } => match self.find(onset_ns) {
+                Some(k) => k.max(1) - 1,
+                None if self.entries[self.index(0)].time_ns < onset_ns => return 0,
+                None => 0,
+            },
         };
         let base = self.entries[self.index(start)];
         for (t, snap) in tangential.iter_mut().zip(base.after) {
             restore(t, snap);
         }
-        if let Some(sync) = sync {
-            for (t, (deflection, velocity, gain)) in tangential.iter_mut().zip(sync) {
+        if let Replay::Correct { correction, .. } = replay {
+            for (t, axis) in tangential.iter_mut().zip(correction.axes) {
                 if let Tangential::Sliding(r) = t {
-                    r.sync(deflection, velocity, gain);
+                    r.sync(
+                        axis.deflection_m,
+                        axis.mass_velocity_m_per_s,
+                        correction.gain,
+                    );
                 }
             }
         }
@@ -144,6 +141,44 @@ impl History {
     }
 }
 
+/// Where a replay starts and what it changes there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Replay {
+    /// State sync: the renderers go back to their state after the tick stamped `at_ns`, the
+    /// correction is blended in, and every later tick is replayed.
+    Correct {
+        /// Sample time of the tick the correction belongs to \[ns\].
+        at_ns: i64,
+        /// The telerobot's estimate of the state then.
+        correction: Correction,
+    },
+    /// Model start: the renderers go back to their state before the tick stamped `onset_ns` (the
+    /// contact episode's first), or before the oldest tick held, and the episode is rendered
+    /// again with the parameters they hold now.
+    FromOnset {
+        /// Sample time of the episode's first tick \[ns\].
+        onset_ns: i64,
+    },
+}
+
+/// A state-sync correction of the sliding-mass renderers (`DESIGN.md` §6, §11.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Correction {
+    /// Per tangential axis.
+    pub(super) axes: [AxisCorrection; 2],
+    /// Blending gain in (0, 1]: the fraction of the difference taken (§11.6: about 0.1).
+    pub(super) gain: f64,
+}
+
+/// The telerobot's estimate of one tangential axis's state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct AxisCorrection {
+    /// Contact deflection `δ = x − L − x_m` \[m\].
+    pub(super) deflection_m: f64,
+    /// Mass velocity \[m/s\].
+    pub(super) mass_velocity_m_per_s: f64,
+}
+
 fn snapshot(t: &Tangential) -> Snap {
     match t {
         Tangential::Sliding(r) => Snap::Sliding(r.snapshot()),
@@ -157,5 +192,60 @@ fn restore(t: &mut Tangential, snap: Snap) {
         (Tangential::Sliding(r), Snap::Sliding(s)) => r.restore(s),
         (Tangential::Shear(r), Snap::Shear(s)) => r.restore(s),
         _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn history(times: impl IntoIterator<Item = i64>) -> History {
+        let mut h = History::new();
+        for t in times {
+            h.push(
+                t,
+                true,
+                [[0.0; 2]; 2],
+                &[Tangential::Free, Tangential::Free],
+            );
+        }
+        h
+    }
+
+    fn correct(at_ns: i64) -> Replay {
+        let axis = AxisCorrection {
+            deflection_m: 0.0,
+            mass_velocity_m_per_s: 0.0,
+        };
+        Replay::Correct {
+            at_ns,
+            correction: Correction {
+                axes: [axis; 2],
+                gain: 0.1,
+            },
+        }
+    }
+
+    #[test]
+    fn each_mode_starts_where_it_says() {
+        let mut t = [Tangential::Free, Tangential::Free];
+        let mut h = history((10..20).map(|k| k * 1_000));
+        // A correction applies after its tick: the 8 later ticks are replayed.
+        assert_eq!(h.replay(correct(11_000), &mut t), 8);
+        assert_eq!(h.replay(correct(19_000), &mut t), 0);
+        assert_eq!(h.replay(correct(5_000), &mut t), 0, "no longer held");
+        // A model start replays the onset tick too.
+        assert_eq!(h.replay(Replay::FromOnset { onset_ns: 12_000 }, &mut t), 8);
+        assert_eq!(
+            h.replay(Replay::FromOnset { onset_ns: 1_000 }, &mut t),
+            9,
+            "older than the history: everything held after the oldest"
+        );
+        assert_eq!(
+            h.replay(Replay::FromOnset { onset_ns: 15_500 }, &mut t),
+            0,
+            "a time inside the history but not a tick of it"
+        );
+        assert_eq!(history([1]).replay(correct(1), &mut t), 0, "one tick held");
     }
 }

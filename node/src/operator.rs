@@ -24,7 +24,7 @@ use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{self as wire, Message};
 use serde::{Deserialize, Serialize};
 
-use crate::history::History;
+use crate::history::{AxisCorrection, Correction, History, Replay};
 use crate::settings::OperatorSettings;
 use crate::telerobot::NodeError;
 use crate::tracker::{ContactTracker, Tracked};
@@ -166,7 +166,7 @@ impl OperatorNode {
     /// Hands over a message from the telerobot.
     pub fn on_message(&mut self, message: &Message, now_ns: i64) {
         match message {
-            Message::Parameters(p) => self.on_parameters(p, now_ns),
+            Message::Parameters(p) => self.on_parameters(p),
             Message::Contact(c)
                 if self
                     .remote
@@ -208,7 +208,7 @@ impl OperatorNode {
         self.stats.clouds += 1;
     }
 
-    fn on_parameters(&mut self, p: &wire::Parameters, now_ns: i64) {
+    fn on_parameters(&mut self, p: &wire::Parameters) {
         let mut accepted = false;
         for set in [p.normal, p.tangential].into_iter().flatten() {
             match gated_from_wire(&set) {
@@ -250,9 +250,9 @@ impl OperatorNode {
                 && let Some(onset) = self.episode_onset_ns
             {
                 // Render the whole episode (as far as the history reaches) with the new model.
-                let ticks =
-                    self.history
-                        .replay_from(onset, now_ns, &mut self.tangential, None, true);
+                let ticks = self
+                    .history
+                    .replay(Replay::FromOnset { onset_ns: onset }, &mut self.tangential);
                 self.stats.model_replays += 1;
                 self.stats.replayed_ticks += ticks as u64;
             }
@@ -276,26 +276,24 @@ impl OperatorNode {
                 .is_none_or(|last| now_ns - last >= min_interval)
             && s.tangential
                 .iter()
-                .all(|a| a.mass_position_m.is_finite() && a.mass_velocity_m_per_s.is_finite());
+                .all(|a| a.deflection_m.is_finite() && a.mass_velocity_m_per_s.is_finite());
         if !usable || !self.history.in_contact_at(s.command_sample_time_ns) {
             self.stats.syncs_skipped += 1;
             return;
         }
         self.last_sync_ns = Some(now_ns);
-        let sync = [0, 1].map(|i| {
-            (
-                s.tangential[i].mass_position_m,
-                s.tangential[i].mass_velocity_m_per_s,
-                self.config.sync_gain,
-            )
-        });
-        let ticks = self.history.replay_from(
-            s.command_sample_time_ns,
-            now_ns,
-            &mut self.tangential,
-            Some(sync),
-            false,
-        );
+        let correction = Correction {
+            axes: s.tangential.map(|a| AxisCorrection {
+                deflection_m: a.deflection_m,
+                mass_velocity_m_per_s: a.mass_velocity_m_per_s,
+            }),
+            gain: self.config.sync_gain,
+        };
+        let replay = Replay::Correct {
+            at_ns: s.command_sample_time_ns,
+            correction,
+        };
+        let ticks = self.history.replay(replay, &mut self.tangential);
         self.stats.syncs += 1;
         self.stats.replayed_ticks += ticks as u64;
     }

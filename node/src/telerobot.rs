@@ -339,7 +339,7 @@ impl TelerobotNode {
                 header: Header::unstamped(now_ns),
                 command_sample_time_ns: command_time,
                 tangential: self.observer.map(|o| AxisState {
-                    mass_position_m: o.deflection_m,
+                    deflection_m: o.deflection_m,
                     mass_velocity_m_per_s: o.mass_velocity_m_per_s,
                 }),
                 in_contact: tracked.in_contact,

@@ -131,11 +131,11 @@ fn contact_run(plan: Plan) -> Drift {
                 command_sample_time_ns: now,
                 tangential: [
                     AxisState {
-                        mass_position_m: 0.0,
+                        deflection_m: 0.0,
                         mass_velocity_m_per_s: 0.0,
                     },
                     AxisState {
-                        mass_position_m: delta,
+                        deflection_m: delta,
                         mass_velocity_m_per_s: s.mass_velocity_m_per_s,
                     },
                 ],

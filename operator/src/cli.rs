@@ -8,8 +8,6 @@
 //! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
 //!   [--position-scale F] [--device-origin X,Y,Z] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
 //!   the network flags it only opens the device and says what it is (exits 2).
-//! - `operator demo [--delay-ms 400] [--seconds 20] [--out DIR] [--json]` — the whole system in
-//!   one process ([`crate::demo`]).
 //!
 //! Not here: logging and Ctrl-C set-up (main), anything of the haptic loop.
 
@@ -23,7 +21,7 @@ use clap::{Args, Parser, Subcommand};
 use rt::Shutdown;
 
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
-pub use run::{DemoArgs, LoopArgs, RtArgs, demo};
+pub use run::{LoopArgs, RtArgs, emit};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
@@ -48,8 +46,6 @@ pub enum Command {
     Devices(DevicesArgs),
     /// Run the operator app against a telerobot: haptic loop, network, report.
     Run(Box<RunArgs>),
-    /// The whole system in one process over loopback (telerobot, netem shim, scripted operator).
-    Demo(DemoArgs),
     /// Make the operator's certificate and key (DIR/operator.crt, DIR/operator.key).
     GenCert(GenCertArgs),
 }

@@ -7,12 +7,7 @@ use operator::cli::{Cli, Command};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // The demo's stdout is its report: by default it logs only warnings, and the safety layer's
-    // per-episode events (counted in the report) not at all. RUST_LOG overrides.
-    let default_filter = match cli.command {
-        Command::Demo(_) => "warn,operator::safety=error",
-        _ => "info",
-    };
+    let default_filter = "info";
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -31,9 +26,6 @@ fn main() -> ExitCode {
         }
         Command::Run(args) => with_signals(&shutdown)
             .and_then(|()| operator::cli::run(args, shutdown.clone(), &mut out)),
-        Command::Demo(args) => with_signals(&shutdown).and_then(|()| {
-            operator::cli::demo(args, shutdown.clone(), &mut out).map(|()| ExitCode::SUCCESS)
-        }),
     };
     result.unwrap_or_else(|e| {
         eprintln!("operator: {e:#}");

@@ -419,7 +419,7 @@ fn forces_cut_by_the_sdk_watchdog_or_velocity_guard_fault_the_device_and_are_rep
         let json = serde_json::to_value(&r).unwrap();
         assert_eq!(json["device_faults"], 1);
         assert_eq!(json["device_state"], "Faulted");
-        let table = operator::report::table(&r);
+        let table = operator::report::table(&r, &operator::report::PeerFigures::default());
         assert!(table.contains("device state, faults"), "{table}");
         assert!(table.contains("Faulted / 1"), "{table}");
     }

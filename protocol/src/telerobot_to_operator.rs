@@ -162,11 +162,14 @@ pub struct Contact {
     pub penetration_m: Option<f64>,
 }
 
-/// Mass state of one tangential axis of the sliding-mass model.
+/// State of one tangential axis of the sliding-mass model.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AxisState {
-    /// Mass position `x_m` along the tangent, relative to the contact onset point \[m\].
-    pub mass_position_m: f64,
+    /// Contact deflection `δ = x − L − x_m` along the tangent: how far the contact element is
+    /// stretched, the state the force depends on (`F_op = k2 δ + b2 δ̇`) \[m\]. (The field was
+    /// misnamed `mass_position_m`; the telerobot always sent the deflection, and the encoding is
+    /// the same.)
+    pub deflection_m: f64,
     /// Mass velocity `ẋ_m` along the tangent \[m/s\].
     pub mass_velocity_m_per_s: f64,
 }
@@ -417,7 +420,7 @@ fn check_contact(c: &Contact) -> Result<(), NonFinite> {
 
 fn check_state_sync(s: &StateSync) -> Result<(), NonFinite> {
     for (axis, name) in s.tangential.iter().zip(["tangential[0]", "tangential[1]"]) {
-        finite::scalar("mass_position_m", axis.mass_position_m)
+        finite::scalar("deflection_m", axis.deflection_m)
             .and_then(|()| finite::scalar("mass_velocity_m_per_s", axis.mass_velocity_m_per_s))
             .map_err(|e| e.within(name))?;
     }

@@ -13,9 +13,9 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand};
 use rt::{PeriodicConfig, Shutdown};
 use sim::scene::{Scene, SceneError};
-use transport::LinkTuning;
 use transport::identity::{self, Identity, IdentityError};
 use transport::tuning::TuningError;
+use transport::{LinkTuning, address};
 
 pub use crate::daemon::RunConfig;
 
@@ -57,7 +57,7 @@ pub struct GenCertArgs {
 #[derive(Clone, Debug, Args)]
 pub struct RunArgs {
     /// UDP address to listen on, IP:PORT (e.g. 0.0.0.0:4433).
-    #[arg(long, value_name = "ADDR", value_parser = parse_addr)]
+    #[arg(long, value_name = "ADDR", value_parser = address::parse_listen_addr)]
     pub listen: SocketAddr,
     /// Directory holding telerobot.crt and telerobot.key (from `telerobot gen-cert`).
     #[arg(long, value_name = "DIR")]
@@ -112,11 +112,6 @@ pub enum ConfigError {
     /// A robot option.
     #[error(transparent)]
     Robot(#[from] crate::robot::RobotArgsError),
-}
-
-fn parse_addr(text: &str) -> Result<SocketAddr, String> {
-    text.parse()
-        .map_err(|_| format!("'{text}' is not IP:PORT (e.g. 0.0.0.0:4433 or [::]:4433)"))
 }
 
 impl RunConfig {

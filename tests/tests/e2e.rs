@@ -441,16 +441,17 @@ fn garbage_datagrams_to_either_port_are_counted_and_ignored() {
     assert!(outcome.report.loop_timing.ticks >= 2900);
 }
 
-/// The README's first command, `operator demo`, end to end at a short length: the JSON on stdout
-/// parses and names the set delay's measurement, and the report, series and plots are written.
+/// The README's first command, `demo`, end to end at a short length: the JSON on stdout parses
+/// and names the set delay's measurement, and the report, series and plots are written. Then
+/// `operator run`'s files (report and series, no plots: the daemons link no plotting library)
+/// are drawn by `mmt plot` to the same plots.
 #[test]
 fn the_demo_command_runs_and_writes_its_report() {
     use clap::Parser;
     let _serial = serial();
     let out = std::env::temp_dir().join(format!("mmt-demo-test-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let cli = operator::cli::Cli::try_parse_from([
-        "operator",
+    let args = demo::cli::Cli::try_parse_from([
         "demo",
         "--seconds",
         "5",
@@ -461,11 +462,8 @@ fn the_demo_command_runs_and_writes_its_report() {
         out.to_str().unwrap(),
     ])
     .unwrap();
-    let operator::cli::Command::Demo(args) = cli.command else {
-        panic!("not the demo")
-    };
     let mut stdout = Vec::new();
-    operator::cli::demo(&args, rt::Shutdown::new(), &mut stdout).unwrap();
+    demo::cli::run_cmd(&args, rt::Shutdown::new(), &mut stdout).unwrap();
     let json: serde_json::Value = serde_json::from_slice(&stdout).expect("stdout is JSON");
     let delay = json["measured_delay_ms"].as_f64();
     assert!(delay.is_some_and(|d| (d - 50.0).abs() <= 5.0), "{delay:?}");
@@ -486,6 +484,25 @@ fn the_demo_command_runs_and_writes_its_report() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["measured_delay_ms"], json["measured_delay_ms"]);
+    // An `operator run --out` directory has the report and the series; `mmt plot` draws them.
+    let run_dir = out.join("operator-run");
+    std::fs::create_dir_all(&run_dir).unwrap();
+    for file in ["report.json", "series.csv"] {
+        std::fs::copy(out.join(file), run_dir.join(file)).unwrap();
+    }
+    let written = lab::cli::plot::plot_dir(&run_dir).unwrap();
+    assert_eq!(written.len(), 6, "{written:?}");
+    for file in ["force.svg", "error.svg", "spectrum.svg", "force.png"] {
+        let (ours, demo) = (run_dir.join(file), out.join(file));
+        let len = std::fs::metadata(&ours).map_or(0, |m| m.len());
+        assert!(len > 0, "{file} not drawn");
+        if file.ends_with(".svg") {
+            // The same figures from the CSV's rounding: the same number of drawn elements.
+            let count =
+                |p: &std::path::Path| std::fs::read_to_string(p).unwrap().matches('<').count();
+            assert_eq!(count(&ours), count(&demo), "{file}");
+        }
+    }
     std::fs::remove_dir_all(&out).unwrap();
 }
 

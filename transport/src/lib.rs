@@ -16,6 +16,10 @@
 //! - [`stats`]: link counters as atomics, and the per-connection datagram bookkeeping over
 //!   `protocol::session`;
 //! - [`report`]: the report form of the link counters;
+//! - [`status`]: the session status both daemons' loops read (connected, session number, since
+//!   when), each daemon adding its own;
+//! - [`address`]: the daemons' `--listen` / `--connect` addresses, parsed with examples in the
+//!   error;
 //! - [`network_runtime`]: the one-worker tokio runtime of a daemon's network task.
 //!
 //! The clock every stamp is read from is [`rt::monotonic_ns`].
@@ -25,6 +29,7 @@
 //! who may connect (the telerobot's `net` module decides; this crate only enforces the pins).
 //! The daemons' network tasks (`telerobot::net`, `operator::net`) are built from these pieces.
 
+pub mod address;
 pub mod endpoint;
 pub mod framing;
 pub mod handoff;
@@ -32,6 +37,7 @@ pub mod identity;
 pub mod pin;
 pub mod report;
 pub mod stats;
+pub mod status;
 pub mod tuning;
 
 pub use endpoint::{ALPN, CloseCode, EndpointError, FRAMING_VERSION, SERVER_NAME};
@@ -40,6 +46,7 @@ pub use identity::{Identity, IdentityError};
 pub use pin::{OperatorPins, TelerobotPin};
 pub use report::LinkReport;
 pub use stats::{DatagramLink, LinkSnapshot, LinkStats};
+pub use status::{SessionCore, SessionRecorder};
 pub use tuning::{Congestion, LinkTuning};
 
 /// The network runtime of a daemon: tokio with one worker thread named `name` (the QUIC

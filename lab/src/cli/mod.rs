@@ -3,6 +3,7 @@
 pub mod contact_bench;
 pub mod estimate;
 pub mod experiment;
+pub mod plot;
 pub mod stress;
 pub mod transfer;
 pub mod work_precision;

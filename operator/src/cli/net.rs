@@ -6,9 +6,9 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::Args;
-use transport::LinkTuning;
 use transport::identity::{self, Identity, IdentityError};
 use transport::tuning::TuningError;
+use transport::{LinkTuning, address};
 
 use crate::net::NetConfig;
 
@@ -32,7 +32,7 @@ pub struct GenCertArgs {
 #[derive(Clone, Debug, Args)]
 pub struct NetArgs {
     /// The telerobot's UDP address, IP:PORT (e.g. 192.168.1.20:4433).
-    #[arg(long, value_name = "ADDR", value_parser = parse_addr, requires_all = ["identity", "trust"])]
+    #[arg(long, value_name = "ADDR", value_parser = address::parse_connect_addr, requires_all = ["identity", "trust"])]
     pub connect: Option<SocketAddr>,
     /// Directory holding operator.crt and operator.key (from `operator gen-cert`).
     #[arg(long, value_name = "DIR", requires_all = ["connect", "trust"])]
@@ -64,11 +64,6 @@ pub enum NetArgsError {
     /// The operator name is empty or too long.
     #[error("--operator-name '{0}': expected 1 to 64 characters")]
     Name(String),
-}
-
-fn parse_addr(text: &str) -> Result<SocketAddr, String> {
-    text.parse()
-        .map_err(|_| format!("'{text}' is not IP:PORT (e.g. 192.168.1.20:4433 or [::1]:4433)"))
 }
 
 impl NetArgs {

@@ -1,5 +1,5 @@
-//! The run-length, loop and report options of `operator run`, the `operator demo` command, and
-//! how both print and write their report.
+//! The run-length, loop and report options of `operator run`, and how it prints and writes its
+//! report.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -9,7 +9,6 @@ use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
 
 use crate::app::{self, Outcome, RunConfig};
-use crate::demo::{self, DemoConfig};
 use crate::device::{DeviceSpec, OpenOptions};
 use crate::net::NetConfig;
 use crate::report;
@@ -21,7 +20,7 @@ pub struct LoopArgs {
     /// Stop after this many seconds of haptic loop (default: run until Ctrl-C).
     #[arg(long, value_name = "S")]
     pub seconds: Option<f64>,
-    /// Write report.json, series.csv and plots (SVG, PNG) into DIR.
+    /// Write report.json and series.csv into DIR (`mmt plot DIR` draws the plots).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Print the report as JSON instead of the table.
@@ -32,39 +31,15 @@ pub struct LoopArgs {
     pub rt: RtArgs,
 }
 
-/// The real-time loop options of `run` and `demo`.
+/// The real-time loop options of `run` (and of the demo, which runs both loops).
 #[derive(Clone, Debug, Args)]
 pub struct RtArgs {
-    /// Busy-spin before each loop deadline [µs], 0 to 200 (the demo's shim spins half of it).
+    /// Busy-spin before each loop deadline [µs], 0 to 200.
     #[arg(long, value_name = "US", default_value_t = 100.0)]
     pub spin_us: f64,
     /// Run the loop thread(s) under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
     #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
     pub realtime_priority: Option<u8>,
-}
-
-/// `operator demo` options.
-#[derive(Clone, Debug, Args)]
-pub struct DemoArgs {
-    /// One-way delay the netem shim adds in each direction [ms].
-    #[arg(long, value_name = "MS", default_value_t = 400.0)]
-    pub delay_ms: f64,
-    /// Length of the run [s].
-    #[arg(long, value_name = "S", default_value_t = 20.0)]
-    pub seconds: f64,
-    /// Where to write report.json, series.csv and the plots.
-    #[arg(long, value_name = "DIR", default_value = "out/demo")]
-    pub out: PathBuf,
-    /// Print the report as JSON instead of the table.
-    #[arg(long)]
-    pub json: bool,
-    /// Loop options (both loops).
-    #[command(flatten)]
-    pub rt: RtArgs,
-    /// Connect the operator to the telerobot directly, without the netem shim (needs
-    /// --delay-ms 0): the loopback latency figure.
-    #[arg(long)]
-    pub no_shim: bool,
 }
 
 /// Why the loop options are refused.
@@ -123,35 +98,8 @@ pub(super) fn run_cmd(
     emit(&outcome, args.out.as_deref(), args.json, out)
 }
 
-/// `operator demo`: runs the demo, prints the report and writes its files.
-pub fn demo(args: &DemoArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<()> {
-    let config = DemoConfig {
-        delay_ms: args.delay_ms,
-        seconds: args.seconds,
-        spin_us: args.rt.spin_us,
-        realtime_priority: args.rt.realtime_priority,
-        via_shim: !args.no_shim,
-        ..DemoConfig::default()
-    };
-    if !args.json {
-        let link = if args.no_shim {
-            "direct".to_owned()
-        } else {
-            format!("netem shim ({} ms each way)", args.delay_ms)
-        };
-        writeln!(
-            out,
-            "demo: telerobot (exp-1 scene) ⇄ {link} ⇄ operator (scripted:exp1), {} s over loopback QUIC…",
-            args.seconds
-        )?;
-        out.flush()?;
-    }
-    let outcome = demo::run(&config, shutdown)?;
-    emit(&outcome, Some(&args.out), args.json, out)
-}
-
 /// Prints the report (table or JSON) and writes the files.
-fn emit(
+pub fn emit(
     outcome: &Outcome,
     dir: Option<&Path>,
     json: bool,
@@ -167,11 +115,15 @@ fn emit(
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
     } else {
-        write!(out, "{}", report::table(&outcome.report))?;
+        write!(
+            out,
+            "{}",
+            report::table(&outcome.report, &report::PeerFigures::default())
+        )?;
         if let Some(dir) = dir {
             writeln!(
                 out,
-                "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
+                "files: {0}/report.json, series.csv (plots: cargo run --release -p lab -- plot {0})",
                 dir.display()
             )?;
         }

@@ -2,7 +2,8 @@
 //! network, and the network task's half.
 
 use std::io;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::ops::Deref;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use protocol::operator_to_telerobot::Command;
@@ -10,7 +11,7 @@ use protocol::telerobot_to_operator::{
     CloudFrame, Contact, Measurement, Parameters, StateSync, Welcome,
 };
 use transport::handoff::BellListener;
-use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received};
+use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received, SessionCore, SessionRecorder};
 
 /// Default outbox capacity \[commands\]: 16 ms at 1 kHz; a network task that lags more loses
 /// the oldest command (the newest is what matters).
@@ -20,28 +21,26 @@ pub const DEFAULT_OUTBOX_CAPACITY: usize = 16;
 /// drains in batches.
 pub const DEFAULT_MEASUREMENT_CAPACITY: usize = 4096;
 
-/// The session as the loop and the report see it. Atomics except the texts.
+/// The session as the loop and the report see it. Reads as a [`SessionCore`] (`connected()`,
+/// `session()`, `since_ns()`, lock-free); the rest is the operator's own. Atomics except the
+/// texts.
 #[derive(Debug, Default)]
 pub struct SessionStatus {
-    connected: AtomicBool,
-    session: AtomicU64,
+    recorder: SessionRecorder,
     attempts: AtomicU64,
     welcome: Mutex<Option<Welcome>>,
     last_disconnect: Mutex<Option<String>>,
 }
 
+impl Deref for SessionStatus {
+    type Target = SessionCore;
+
+    fn deref(&self) -> &SessionCore {
+        self.recorder.core()
+    }
+}
+
 impl SessionStatus {
-    /// Whether a session is open. Lock-free.
-    pub fn connected(&self) -> bool {
-        self.connected.load(Relaxed)
-    }
-
-    /// Number of the current (or last) session: one more per session opened, so a change means
-    /// a reconnect (sequence numbers and the clock offset restarted). Lock-free.
-    pub fn session(&self) -> u64 {
-        self.session.load(Relaxed)
-    }
-
     /// Connection attempts since start (successful or not). Lock-free.
     pub fn attempts(&self) -> u64 {
         self.attempts.load(Relaxed)
@@ -62,15 +61,13 @@ impl SessionStatus {
         self.attempts.fetch_add(1, Relaxed);
     }
 
-    pub(crate) fn begin(&self, welcome: Welcome) -> u64 {
+    pub(crate) fn begin(&self, welcome: Welcome, now_ns: i64) -> u64 {
         *lock(&self.welcome) = Some(welcome);
-        let session = self.session.fetch_add(1, Relaxed) + 1;
-        self.connected.store(true, Relaxed);
-        session
+        self.recorder.begin(now_ns)
     }
 
     pub(crate) fn end(&self, reason: &str) {
-        self.connected.store(false, Relaxed);
+        self.recorder.end();
         *lock(&self.last_disconnect) = Some(reason.to_owned());
     }
 }

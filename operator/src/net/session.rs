@@ -111,7 +111,7 @@ impl Client<'_> {
             .map_err(|e| self.frame_failure(e, rejections))?;
         match accept_welcome(&frame) {
             Ok(welcome) => {
-                let session = self.io.shared.status.begin(welcome.clone());
+                let session = self.io.shared.status.begin(welcome.clone(), monotonic_ns());
                 tracing::info!(telerobot = %self.config.connect, session,
                     scene = %welcome.scene.name, "session open");
                 Ok((connection, send))

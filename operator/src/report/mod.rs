@@ -85,34 +85,32 @@ pub struct NetworkedReport {
     pub device_fault: Option<String>,
     /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
-    /// The telerobot daemon's summary (the demo, which runs it).
-    pub telerobot: Option<telerobot::Summary>,
-    /// The netem shim's figures (the demo).
-    pub shim: Option<ShimReport>,
+    /// The directions the series' forces are plotted along (`mmt plot` reads them).
+    pub series_axes: SeriesAxes,
 }
 
-/// The netem shim's figures.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct ShimReport {
-    /// Release lateness (actual − due send time), both directions \[µs\].
-    pub lateness: Summary,
-    /// Datagrams forwarded up (operator → telerobot) and down.
-    pub forwarded: (u64, u64),
-    /// Datagrams dropped by the link model (loss, queue limit), up and down.
-    pub dropped: (u64, u64),
+/// The directions a series' forces are plotted along: the surface's second tangent (the thesis's
+/// "y") and its normal, unit vectors in the world frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct SeriesAxes {
+    /// Second tangent.
+    pub tangent: [f64; 3],
+    /// Normal.
+    pub normal: [f64; 3],
 }
 
-impl From<&netem::ShimStats> for ShimReport {
-    fn from(s: &netem::ShimStats) -> Self {
-        ShimReport {
-            lateness: s.lateness,
-            forwarded: (s.up.forwarded, s.down.forwarded),
-            dropped: (
-                s.up.dropped_loss + s.up.dropped_limit,
-                s.down.dropped_loss + s.down.dropped_limit,
-            ),
-        }
-    }
+/// What another part of a run measured, for the rows of the operator's table that only a run
+/// with that part in the same process can fill (the demo: the telerobot daemon and the shim).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PeerFigures {
+    /// The telerobot's link counters (quinn's, for its row).
+    pub telerobot_link: Option<LinkReport>,
+    /// The uplink's one-way latency, command sample → telerobot receipt.
+    pub uplink_latency: Option<Summary>,
+    /// The telerobot loop's timing.
+    pub telerobot_timing: Option<TimingReport>,
+    /// The netem shim's release lateness.
+    pub shim_lateness: Option<Summary>,
 }
 
 /// What a run knew about itself.
@@ -224,8 +222,10 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             .fault()
             .map(|f| format!("{} (at {:.3} s)", f.cause, f.at.as_secs_f64())),
         wall_seconds: facts.wall_seconds,
-        telerobot: None,
-        shim: None,
+        series_axes: SeriesAxes {
+            tangent: series.axis,
+            normal: series.normal,
+        },
     };
     (series, report)
 }
@@ -321,14 +321,15 @@ fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<Delay
     )
 }
 
-/// The stdout table: `mmt experiment`'s, then the networked figures.
-pub fn table(r: &NetworkedReport) -> String {
+/// The stdout table: `mmt experiment`'s, then the networked figures (with `peer`'s rows where a
+/// run has them).
+pub fn table(r: &NetworkedReport, peer: &PeerFigures) -> String {
     let mut out = metrics::table(&r.experiment);
-    let _ = write_extras(&mut out, r);
+    let _ = write_extras(&mut out, r, peer);
     out
 }
 
-fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
+fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> std::fmt::Result {
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
     // p50 / p99 / max of a distribution in µs, or in ms.
@@ -391,10 +392,10 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
         "  quinn, operator: on the wire / congestion events / lost packets",
         quinn(l),
     );
-    if let Some(t) = &r.telerobot {
+    if let Some(l) = &peer.telerobot_link {
         row(
             "  quinn, telerobot: on the wire / congestion events / lost packets",
-            quinn(&t.link),
+            quinn(l),
         );
     }
     row(
@@ -419,26 +420,20 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
             );
         }
     };
-    if let Some(t) = &r.telerobot {
-        latency(
-            "uplink: command sample → telerobot receipt",
-            &t.command_latency,
-        );
+    if let Some(l) = &peer.uplink_latency {
+        latency("uplink: command sample → telerobot receipt", l);
     }
     latency(
         "downlink: measurement send → operator receipt",
         &r.downlink_latency,
     );
     row("sessions", r.sessions.to_string());
-    if let Some(t) = &r.telerobot {
-        row(
-            "telerobot loop period p50 / p99 / max",
-            us(&t.timing.period),
-        );
-        row("  ticks, overruns, skipped", count(&t.timing));
+    if let Some(t) = &peer.telerobot_timing {
+        row("telerobot loop period p50 / p99 / max", us(&t.period));
+        row("  ticks, overruns, skipped", count(t));
     }
-    if let Some(s) = &r.shim {
-        row("netem release lateness p50 / p99 / max", us(&s.lateness));
+    if let Some(l) = &peer.shim_lateness {
+        row("netem release lateness p50 / p99 / max", us(l));
     }
     let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
     row(
@@ -505,21 +500,14 @@ fn write_extras(out: &mut String, r: &NetworkedReport) -> std::fmt::Result {
     Ok(())
 }
 
-/// The files of `--out DIR`: `mmt experiment`'s series and plots, and `report.json` with every
-/// figure of [`NetworkedReport`].
-pub fn files(
-    r: &NetworkedReport,
-    s: &Series,
-) -> Result<Vec<(String, Vec<u8>)>, lab::plot::PlotError> {
-    let mut files = lab::report::files(&r.experiment, s)?;
-    let json =
-        serde_json::to_string_pretty(r).map_err(|e| lab::plot::PlotError::Draw(e.to_string()))?;
-    for (name, bytes) in &mut files {
-        if name == "report.json" {
-            *bytes = json.clone().into_bytes();
-        }
-    }
-    Ok(files)
+/// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the
+/// series as `series.csv`. The plots are `lab`'s (`mmt plot DIR` draws them from these two
+/// files): the daemons link no plotting library.
+pub fn files(r: &NetworkedReport, s: &Series) -> Result<Vec<(String, Vec<u8>)>, serde_json::Error> {
+    Ok(vec![
+        ("report.json".to_owned(), serde_json::to_vec_pretty(r)?),
+        ("series.csv".to_owned(), s.to_csv().into_bytes()),
+    ])
 }
 
 #[cfg(test)]

@@ -76,7 +76,7 @@ fn the_table_shows_every_trip_counter() {
         scale_rejections: 11,
         ..SafetyStats::default()
     };
-    let t = table(&report(safety, Vec::new()));
+    let t = table(&report(safety, Vec::new()), &PeerFigures::default());
     assert_eq!(
         value(&t, "safety episodes: watchdog / rate / max / workspace"),
         "9 / 5 / 4 / 6"
@@ -108,7 +108,7 @@ fn renderer_counters_are_reported() {
         ..RendererStats::default()
     };
     let r = report(SafetyStats::default(), vec![normal, tangential]);
-    let t = table(&r);
+    let t = table(&r, &PeerFigures::default());
     assert_eq!(
         value(&t, "renderer ticks: unresolved (gate) / clipped"),
         "13 / 3"

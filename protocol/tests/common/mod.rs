@@ -105,11 +105,11 @@ pub fn telerobot_samples() -> Vec<t2o::Message> {
             command_sample_time_ns: 6,
             tangential: [
                 AxisState {
-                    mass_position_m: 0.125,
+                    deflection_m: 0.125,
                     mass_velocity_m_per_s: -0.5,
                 },
                 AxisState {
-                    mass_position_m: 0.0,
+                    deflection_m: 0.0,
                     mass_velocity_m_per_s: 0.0,
                 },
             ],
@@ -197,7 +197,7 @@ pub fn largest_telerobot_datagrams() -> Vec<t2o::Message> {
             header: largest_header(),
             command_sample_time_ns: i64::MIN,
             tangential: [AxisState {
-                mass_position_m: f64::MAX,
+                deflection_m: f64::MAX,
                 mass_velocity_m_per_s: f64::MAX,
             }; 2],
             in_contact: true,
@@ -411,11 +411,10 @@ fn arb_contact() -> impl Strategy<Value = t2o::Message> {
 }
 
 fn arb_state_sync() -> impl Strategy<Value = t2o::Message> {
-    let axis =
-        (finite(), finite()).prop_map(|(mass_position_m, mass_velocity_m_per_s)| AxisState {
-            mass_position_m,
-            mass_velocity_m_per_s,
-        });
+    let axis = (finite(), finite()).prop_map(|(deflection_m, mass_velocity_m_per_s)| AxisState {
+        deflection_m,
+        mass_velocity_m_per_s,
+    });
     (
         arb_header(),
         any::<i64>(),

@@ -2,13 +2,14 @@
 //! the cloud source see of the network, and the network task's half.
 
 use std::io;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering::Relaxed};
+use std::ops::Deref;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use protocol::operator_to_telerobot::Command;
 use protocol::telerobot_to_operator::{CloudFrame, Datagram};
 use transport::handoff::BellListener;
-use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received};
+use transport::{LinkSnapshot, LinkStats, Mailbox, Outbox, Received, SessionCore, SessionRecorder};
 
 /// Default outbox capacity \[messages\]: 64 ≈ 16 ms of four datagram kinds at 1 kHz; a network
 /// task that lags more than that loses the oldest.
@@ -19,12 +20,12 @@ pub const DEFAULT_OUTBOX_CAPACITY: usize = 64;
 /// drops stale ones), so a queue, not a latest-value slot; a loop stalled longer loses the oldest.
 pub const COMMAND_QUEUE_CAPACITY: usize = 64;
 
-/// Who is in control, for the loop and the report. Atomics except the name.
+/// Who is in control, for the loop and the report. Reads as a [`SessionCore`] (`connected()`,
+/// `session()`, `since_ns()`, lock-free); the rest is the telerobot's own. Atomics except the
+/// name.
 #[derive(Debug, Default)]
 pub struct SessionStatus {
-    connected: AtomicBool,
-    session: AtomicU64,
-    since_ns: AtomicI64,
+    recorder: SessionRecorder,
     operator: Mutex<Option<String>>,
     refused_busy: AtomicU64,
     refused_other: AtomicU64,
@@ -33,23 +34,15 @@ pub struct SessionStatus {
     clouds_failed: AtomicU64,
 }
 
+impl Deref for SessionStatus {
+    type Target = SessionCore;
+
+    fn deref(&self) -> &SessionCore {
+        self.recorder.core()
+    }
+}
+
 impl SessionStatus {
-    /// Whether an operator is in control. Lock-free.
-    pub fn connected(&self) -> bool {
-        self.connected.load(Relaxed)
-    }
-
-    /// Number of the current (or last) session: increases by one per accepted operator; 0 before
-    /// the first. Lock-free.
-    pub fn session(&self) -> u64 {
-        self.session.load(Relaxed)
-    }
-
-    /// When the current session began [ns, `rt::monotonic_ns`]. Lock-free.
-    pub fn since_ns(&self) -> i64 {
-        self.since_ns.load(Relaxed)
-    }
-
     /// The controlling operator's name. **Takes a lock: not for the real-time loop.**
     pub fn operator(&self) -> Option<String> {
         self.operator
@@ -79,14 +72,11 @@ impl SessionStatus {
 
     pub(crate) fn begin(&self, operator: &str, now_ns: i64) -> u64 {
         *self.operator.lock().unwrap_or_else(PoisonError::into_inner) = Some(operator.to_owned());
-        self.since_ns.store(now_ns, Relaxed);
-        let session = self.session.fetch_add(1, Relaxed) + 1;
-        self.connected.store(true, Relaxed);
-        session
+        self.recorder.begin(now_ns)
     }
 
     pub(crate) fn end(&self) {
-        self.connected.store(false, Relaxed);
+        self.recorder.end();
         *self.operator.lock().unwrap_or_else(PoisonError::into_inner) = None;
     }
 

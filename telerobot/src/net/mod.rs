@@ -9,7 +9,8 @@
 //!   refused connection is then closed with [`transport::CloseCode::Refused`] and the reason.
 //!   A connection presenting the certificate of the operator in control is that operator again
 //!   (its app restarted before the old connection timed out): it takes over, and the old
-//!   connection is closed with [`transport::CloseCode::Replaced`].
+//!   connection is closed with [`transport::CloseCode::Replaced`]. The rule is a state machine
+//!   (`slot`, no I/O, tested transition by transition); `claim` is its async shell.
 //! - In a session: `Command` datagrams (the newest of their direction, or reordered ones, which
 //!   the node's playout buffer still orders) go to the loop's command queue stamped with their
 //!   receipt time; `Ping`s are answered at once with a `Pong`; everything else is garbage,
@@ -20,11 +21,13 @@
 //! Logging: one event per connect, refusal and disconnect (with the reason); nothing per
 //! datagram. Not here: the real-time loop (it gets a [`TelerobotLink`]), the robot, the scene.
 
+mod claim;
 mod link;
 mod session;
+mod slot;
 
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::Arc;
 use std::time::Duration;
 
 use protocol::telerobot_to_operator::SceneSummary;
@@ -130,122 +133,21 @@ pub async fn serve(
     Ok(())
 }
 
-/// The controlling-operator slot: who holds it, and the doorbells of the loop's outboxes, which
-/// only the session in control listens to.
-#[derive(Debug)]
-struct Slot {
-    holder: Option<Holder>,
-    bells: Option<Bells>,
-}
-
-/// The operator in control.
-#[derive(Debug)]
-struct Holder {
-    /// The name from its `Hello`.
-    name: String,
-    /// Its certificate (DER), as the TLS handshake presented it.
-    certificate: Option<Vec<u8>>,
-    /// Its connection, closed if a newer one with the same certificate takes over.
-    connection: quinn::Connection,
-}
-
-/// How long a connection presenting the controlling operator's own certificate waits for the old
-/// session to end after closing it (the old session's task notices at once; this is a bound).
-const TAKEOVER_WAIT: Duration = Duration::from_secs(2);
-
-/// The network side of the loop's two outboxes.
+/// The network side of the loop's two outboxes: in the controlling-operator slot while nobody
+/// is in control, the session's while one is.
 #[derive(Debug)]
 struct Bells {
     datagrams: BellListener,
     clouds: BellListener,
 }
 
-/// Holds the slot for one session; gives it back when dropped (also on error or cancellation).
-struct Control {
-    slot: Arc<Mutex<Slot>>,
-    bells: Option<Bells>,
-}
-
-impl Control {
-    /// Takes the slot for `operator` on `connection`, or says who holds it.
-    ///
-    /// A connection presenting the same certificate as the operator in control is that operator
-    /// again — its app restarted, or reconnected before the telerobot noticed the old connection
-    /// was gone (which takes the idle timeout). It takes over: the old connection is closed with
-    /// [`CloseCode::Replaced`] and the slot is handed on once the old session has ended. Another
-    /// certificate is refused with the holder's name.
-    async fn claim(
-        slot: &Arc<Mutex<Slot>>,
-        operator: &str,
-        connection: &quinn::Connection,
-    ) -> Result<Control, String> {
-        let certificate = peer_certificate(connection);
-        let deadline = tokio::time::Instant::now() + TAKEOVER_WAIT;
-        let mut replacing = false;
-        loop {
-            {
-                let mut s = slot.lock().unwrap_or_else(PoisonError::into_inner);
-                match &s.holder {
-                    None => {
-                        let bells = s.bells.take().ok_or_else(String::new)?;
-                        s.holder = Some(Holder {
-                            name: operator.to_owned(),
-                            certificate,
-                            connection: connection.clone(),
-                        });
-                        return Ok(Control {
-                            slot: Arc::clone(slot),
-                            bells: Some(bells),
-                        });
-                    }
-                    Some(holder)
-                        if certificate.is_some()
-                            && holder.certificate == certificate
-                            && tokio::time::Instant::now() < deadline =>
-                    {
-                        if !replacing {
-                            replacing = true;
-                            tracing::info!(
-                                old = %holder.connection.remote_address(),
-                                new = %connection.remote_address(),
-                                operator,
-                                "the operator in control connected again: replacing its old connection"
-                            );
-                            holder.connection.close(
-                                CloseCode::Replaced.code(),
-                                b"replaced by a newer connection with the same certificate",
-                            );
-                        }
-                    }
-                    Some(holder) => return Err(holder.name.clone()),
-                }
-            }
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
-    }
-}
-
-/// The certificate the peer presented in the TLS handshake (DER), if any.
-fn peer_certificate(connection: &quinn::Connection) -> Option<Vec<u8>> {
-    let chain = connection
-        .peer_identity()?
-        .downcast::<Vec<CertificateDer<'static>>>()
-        .ok()?;
-    chain.first().map(|c| c.to_vec())
-}
-
-impl Drop for Control {
-    fn drop(&mut self) {
-        let mut s = self.slot.lock().unwrap_or_else(PoisonError::into_inner);
-        s.holder = None;
-        s.bells = self.bells.take();
-    }
-}
+/// The slot every connection task claims ([`slot`] is the rule, [`claim`] the waiting).
+type Claims = claim::Claims<Bells, quinn::Connection>;
 
 /// What every connection task shares.
 struct Context {
     shared: Arc<link::Shared>,
-    slot: Arc<Mutex<Slot>>,
+    claims: Arc<Claims>,
     scene: SceneSummary,
     handshake_timeout: Duration,
     refusal_linger: Duration,
@@ -272,13 +174,13 @@ impl Server {
     pub async fn serve(self, io: NetIo, shutdown: impl Future<Output = ()>) {
         let context = Arc::new(Context {
             shared: io.shared,
-            slot: Arc::new(Mutex::new(Slot {
-                holder: None,
-                bells: Some(Bells {
+            claims: Claims::new(
+                Bells {
                     datagrams: io.datagram_bell,
                     clouds: io.cloud_bell,
-                }),
-            })),
+                },
+                slot::TAKEOVER_WAIT,
+            ),
             scene: self.config.scene.clone(),
             handshake_timeout: self.config.handshake_timeout,
             refusal_linger: self.config.refusal_linger,

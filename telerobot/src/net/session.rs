@@ -16,8 +16,10 @@ use transport::endpoint::describe_close;
 use transport::framing::{self, FrameError, STALE_CLOUD_CODE};
 use transport::{CloseCode, DatagramLink, Received};
 
+use super::claim::{Control, peer_certificate};
 use super::link::{CloudOutcome, Shared};
-use super::{Bells, Context, Control};
+use super::slot::Contender;
+use super::{Bells, Context};
 
 /// Runs the handshake and, if the operator is accepted, the session until it ends.
 pub(super) async fn run(connection: Connection, context: &Context) {
@@ -52,13 +54,24 @@ pub(super) async fn run(connection: Connection, context: &Context) {
         Err(refusal) => return refuse(&connection, send, refusal, context).await,
     };
     let operator = hello.operator_name;
-    let mut control = match Control::claim(&context.slot, &operator, &connection).await {
+    let contender = Contender {
+        // How a refused operator is told who is in control: today the name from the Hello.
+        name: operator.clone(),
+        certificate: peer_certificate(&connection),
+        connection: connection.clone(),
+    };
+    let mut control = match context.claims.claim(contender).await {
         Ok(control) => control,
-        Err(controlling_operator) => {
-            let refusal = Refusal::Busy {
-                controlling_operator,
+        Err(refused) => {
+            let refusal = match refused.holder() {
+                Some(holder) => Refusal::Busy {
+                    controlling_operator: holder.to_owned(),
+                },
+                None => Refusal::Other(refused.to_string()),
             };
-            tracing::info!(%remote, %operator, "refusing operator: {refusal}");
+            if let Refusal::Busy { .. } = refusal {
+                tracing::info!(%remote, %operator, why = %refused, "refusing operator: {refusal}");
+            }
             return refuse(&connection, send, refusal, context).await;
         }
     };
@@ -125,13 +138,13 @@ async fn refuse(
 async fn pump(
     connection: &Connection,
     recv: RecvStream,
-    control: &mut Control,
+    control: &mut Control<Bells, Connection>,
     context: &Context,
     session: u64,
     want_clouds: bool,
 ) -> String {
     let shared = &context.shared;
-    let Some(bells) = control.bells.as_mut() else {
+    let Some(bells) = control.bells() else {
         return "internal error: the session holds no doorbells".to_owned();
     };
     // Whatever the loop queued while nobody was connected is stale.

@@ -9,13 +9,14 @@
 //! - the bridge's counters (out of order, duplicates, refusals, unpaired) and the command guard's.
 //!
 //! ```sh
-//! cargo run --release -p operator --example ros2_figures [-- SECONDS [SEED]]
+//! cargo run --release -p demo --example ros2_figures [-- SECONDS [SEED]]
 //! ```
 //! Each run takes SECONDS (default 60) of wall time plus a few seconds of start-up.
 
 #![allow(clippy::unwrap_used)]
 
-use operator::demo::{self, DemoConfig};
+use demo::DemoConfig;
+use demo::run::run as run_demo;
 use ros2::arm::{ArmCamera, ArmConfig, TestArm};
 use ros2::topics::RobotTopics;
 use ros2::{BridgeConfig, Graph, GraphConfig, Qos};
@@ -40,7 +41,7 @@ fn main() {
     };
 
     println!("exp 1, {seconds} s, seed {seed}, no delay, the operator connected directly");
-    let sim = demo::run(&base, Shutdown::new()).unwrap();
+    let sim = run_demo(&base, Shutdown::new()).unwrap();
 
     // The ROS 2 run: a namespace of its own on the domain the environment gives (or 0).
     let ns = format!("/mmt_fig{}", std::process::id());
@@ -74,7 +75,7 @@ fn main() {
         },
     )
     .unwrap();
-    let ros = demo::run(
+    let ros = run_demo(
         &DemoConfig {
             robot: RobotConfig::Ros2 {
                 graph: graph.clone(),
@@ -90,9 +91,9 @@ fn main() {
     .unwrap();
     let arm = arm.stop();
 
-    let row = |name: &str, o: &operator::app::Outcome| {
-        let e = &o.report.experiment;
-        let t = o.report.telerobot.as_ref().unwrap();
+    let row = |name: &str, o: &demo::Outcome| {
+        let e = &o.report.run.experiment;
+        let t = &o.report.telerobot;
         println!(
             "{name:<10} {:>20} {:>16} {:>18} {:>14}",
             e.rms_error_pct_after_stable
@@ -113,13 +114,13 @@ fn main() {
     row("sim", &sim);
     row("ros2", &ros);
     let (a, b) = (
-        sim.report.experiment.rms_error_pct_after_stable,
-        ros.report.experiment.rms_error_pct_after_stable,
+        sim.report.run.experiment.rms_error_pct_after_stable,
+        ros.report.run.experiment.rms_error_pct_after_stable,
     );
     if let (Some(a), Some(b)) = (a, b) {
         println!("difference: {:+.2} points", b - a);
     }
-    let t = ros.report.telerobot.as_ref().unwrap();
+    let t = &ros.report.telerobot;
     let r = t.robot.as_ref().unwrap();
     println!(
         "\nstate stream: {:.1} Hz effective; longest gap {:.2} ms between stamps, {:.2} ms between \

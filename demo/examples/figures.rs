@@ -1,4 +1,4 @@
-//! The networked system's figures (issue 5), from full demo runs (`operator demo`'s code):
+//! The networked system's figures (issue 5), from full demo runs (the `demo` command's code):
 //!
 //! 1. loopback without delay and without the shim: command sample → telerobot receipt
 //!    (targets p50 ≤ 100 µs, p99 ≤ 1 ms);
@@ -9,12 +9,12 @@
 //!    lateness under this load.
 //!
 //! ```sh
-//! cargo run --release -p operator --example figures [-- SECONDS \[SPIN_US\]]
+//! cargo run --release -p demo --example figures [-- SECONDS \[SPIN_US\]]
 //! ```
 
 #![allow(clippy::unwrap_used)]
 
-use operator::demo::{self, DemoConfig};
+use demo::DemoConfig;
 use rt::Shutdown;
 
 fn main() {
@@ -52,9 +52,10 @@ fn main() {
             via_shim,
             ..DemoConfig::default()
         };
-        let outcome = demo::run(&config, Shutdown::new()).unwrap();
+        let outcome = demo::run::run(&config, Shutdown::new()).unwrap();
         let r = &outcome.report;
-        let t = r.telerobot.as_ref().unwrap();
+        let t = &r.telerobot;
+        let r_run = &r.run;
         // Latencies beyond the set delay: what the stack adds (queueing, scheduling).
         let extra = |l: &rt::Summary| {
             let d = delay_ms * 1e3;
@@ -73,14 +74,16 @@ fn main() {
         };
         println!(
             "{name:<16} {:>10} {:>8} {:>22} {:>22} {:>22} {:>22} {:>18}",
-            r.measured_delay_ms
+            r_run
+                .measured_delay_ms
                 .map_or("—".into(), |d| format!("{d:.2}")),
-            r.experiment
+            r_run
+                .experiment
                 .rms_error_pct_after_stable
                 .map_or("—".into(), |e| format!("{e:.2}")),
             extra(&t.command_latency),
-            extra(&r.downlink_latency),
-            period(&r.loop_timing),
+            extra(&r_run.downlink_latency),
+            period(&r_run.loop_timing),
             period(&t.timing),
             r.shim.as_ref().map_or("—".into(), |s| format!(
                 "{:.1}/{:.1}",

@@ -1,8 +1,8 @@
-//! `operator demo`: the whole system in one process over real loopback QUIC/UDP — throw-away
-//! certificates in a temporary directory, the telerobot daemon on the built-in exp-1 scene, the
-//! netem shim delaying each direction, and the operator app with the scripted exp-1 device —
-//! then the report. The same code paths as the two binaries: [`telerobot::Telerobot::start`]
-//! (what `telerobot run` runs) and [`crate::app::run`] (what `operator run` runs).
+//! The demo run: throw-away certificates in a temporary directory, the telerobot daemon on the
+//! built-in exp-1 scene, the netem shim delaying each direction, and the operator app with the
+//! scripted exp-1 device — then the report. The same code paths as the two binaries:
+//! [`telerobot::Telerobot::start`] (what `telerobot run` runs) and [`operator::app::run`] (what
+//! `operator run` runs).
 //!
 //! ```text
 //!  operator app ──QUIC/UDP──▶ netem shim (delay each way) ──▶ telerobot daemon
@@ -20,11 +20,12 @@ use telerobot::Telerobot;
 use transport::LinkTuning;
 use transport::identity::{self, Identity};
 
-use crate::app::{self, Known, Outcome, RunConfig, RunError};
-use crate::device::{DeviceSpec, OpenOptions};
-use crate::net::NetConfig;
-use crate::report::ShimReport;
-use crate::safety::SafetyConfig;
+use operator::app::{self, Known, RunConfig, RunError};
+use operator::device::{DeviceSpec, OpenOptions};
+use operator::net::NetConfig;
+use operator::safety::SafetyConfig;
+
+use crate::report::{DemoReport, ShimReport};
 
 /// The demo's settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -95,7 +96,8 @@ pub enum DemoError {
 }
 
 impl DemoConfig {
-    fn validate(&self) -> Result<(), DemoError> {
+    /// Checks every setting against its range.
+    pub fn validate(&self) -> Result<(), DemoError> {
         let check = |field, value: f64, ok: bool, expected| {
             if ok {
                 Ok(())
@@ -132,6 +134,15 @@ impl DemoConfig {
             "0 to 200 µs",
         )
     }
+}
+
+/// What a demo run gives: its report and the operator's series (for the files of `--out`).
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The report.
+    pub report: DemoReport,
+    /// The operator's series.
+    pub series: metrics::Series,
 }
 
 /// Runs the demo (about `seconds` plus a few seconds of set-up). `shutdown` ends it early.
@@ -215,13 +226,17 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     );
     let summary = telerobot.stop();
     let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
-    let mut outcome = operator?;
+    let mut operator = operator?;
     let shim_stats = shim_stats?;
-    let r = &mut outcome.report;
-    r.experiment.telerobot_stats = summary.last.node;
-    r.telerobot = Some(summary);
-    r.shim = shim_stats.as_ref().map(ShimReport::from);
-    Ok(outcome)
+    operator.report.experiment.telerobot_stats = summary.last.node;
+    Ok(Outcome {
+        report: DemoReport {
+            run: operator.report,
+            telerobot: summary,
+            shim: shim_stats.as_ref().map(ShimReport::from),
+        },
+        series: operator.series,
+    })
 }
 
 /// A temporary directory removed on drop.

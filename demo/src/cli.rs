@@ -1,0 +1,117 @@
+//! The `demo` command line: options, the run, the report printed and written.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::Parser;
+use operator::cli::RtArgs;
+use rt::Shutdown;
+
+use crate::report::{banner, files, table};
+use crate::run::{DemoConfig, run};
+
+/// The whole model-mediated teleoperation system in one process over loopback QUIC/UDP: the
+/// telerobot daemon on the built-in exp-1 scene, the netem shim delaying each direction, the
+/// operator app with the scripted exp-1 device; then the report, its series and its plots.
+#[derive(Clone, Debug, Parser)]
+#[command(name = "demo", version, about)]
+pub struct Cli {
+    /// One-way delay the netem shim adds in each direction [ms].
+    #[arg(
+        long,
+        value_name = "MS",
+        default_value_t = 400.0,
+        allow_hyphen_values = true
+    )]
+    pub delay_ms: f64,
+    /// Length of the run [s].
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 20.0,
+        allow_hyphen_values = true
+    )]
+    pub seconds: f64,
+    /// Where to write report.json, series.csv and the plots.
+    #[arg(long, value_name = "DIR", default_value = "out/demo")]
+    pub out: PathBuf,
+    /// Print the report as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Loop options (both loops; the shim spins half the window).
+    #[command(flatten)]
+    pub rt: RtArgs,
+    /// Connect the operator to the telerobot directly, without the netem shim (needs
+    /// --delay-ms 0): the loopback latency figure.
+    #[arg(long)]
+    pub no_shim: bool,
+}
+
+/// Runs the demo, prints the report and writes its files.
+pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<()> {
+    let config = DemoConfig {
+        delay_ms: args.delay_ms,
+        seconds: args.seconds,
+        spin_us: args.rt.spin_us,
+        realtime_priority: args.rt.realtime_priority,
+        via_shim: !args.no_shim,
+        ..DemoConfig::default()
+    };
+    config.validate()?;
+    if !args.json {
+        writeln!(
+            out,
+            "{}",
+            banner(args.delay_ms, args.seconds, !args.no_shim)
+        )?;
+        out.flush()?;
+    }
+    let outcome = run(&config, shutdown)?;
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (name, bytes) in files(&outcome.report, &outcome.series)? {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
+    } else {
+        write!(out, "{}", table(&outcome.report))?;
+        writeln!(
+            out,
+            "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
+            dir.display()
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_and_the_ranges_are_checked() {
+        let args = Cli::try_parse_from(["demo"]).unwrap();
+        assert_eq!((args.delay_ms, args.seconds), (400.0, 20.0));
+        assert_eq!(args.out, PathBuf::from("out/demo"));
+        for (flags, expected) in [
+            (&["--seconds", "1"][..], "--seconds = 1 is out of range"),
+            (&["--delay-ms", "-5"][..], "--delay-ms = -5 is out of range"),
+            (&["--delay-ms", "5", "--no-shim"][..], "without the shim"),
+        ] {
+            let args =
+                Cli::try_parse_from(std::iter::once("demo").chain(flags.iter().copied())).unwrap();
+            let mut printed = Vec::new();
+            let e = run_cmd(&args, Shutdown::new(), &mut printed).unwrap_err();
+            assert!(e.to_string().contains(expected), "{flags:?}: {e}");
+            assert!(
+                printed.is_empty(),
+                "nothing printed before the check: {flags:?}"
+            );
+        }
+        let e = Cli::try_parse_from(["demo", "--realtime-priority", "100"]).unwrap_err();
+        assert!(e.to_string().contains("--realtime-priority"), "{e}");
+    }
+}
