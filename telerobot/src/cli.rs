@@ -125,7 +125,13 @@ impl RunConfig {
                         file: file.clone(),
                         source,
                     })?;
-                Scene::from_toml(&text, &file)?
+                let mut scene = Scene::from_toml(&text, &file)?;
+                // A cloud file is named relative to the scene file.
+                if let Some(cloud) = scene.cloud.path.take() {
+                    let resolved = crate::camera::file::resolve(&cloud, Some(path));
+                    scene.cloud.path = Some(resolved.display().to_string());
+                }
+                scene
             }
             None => Scene::exp1(),
         };

@@ -112,6 +112,14 @@ pub enum DaemonError {
     /// The ROS 2 graph or an endpoint on it.
     #[error(transparent)]
     Ros2(#[from] ros2::GraphError),
+    /// The scene's cloud file.
+    #[error(transparent)]
+    CloudFile(#[from] camera::CloudFileError),
+    /// `[cloud] source = "ros2"` is not wired into the daemon yet.
+    #[error(
+        "[cloud] source = \"ros2\": not supported by the telerobot daemon yet (use \"file\" or \"plane\")"
+    )]
+    Ros2Cloud,
     /// The command limits.
     #[error(transparent)]
     Limits(#[from] node::guard::LimitsError),
@@ -248,20 +256,12 @@ impl Telerobot {
 
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = if config.scene.cloud.source == CloudKind::None {
-            None
-        } else {
-            let geometry = World::new(&config.scene, start, config.seed)?;
-            Some(
-                camera::spawn(
-                    Camera::new(&config.scene, config.seed),
-                    geometry,
-                    Arc::clone(&feed),
-                    link.clone(),
-                    stop.clone(),
-                )
-                .map_err(io("the camera thread"))?,
-            )
+        let camera = match camera_source(&config.scene, start, config.seed)? {
+            None => None,
+            Some(source) => Some(
+                camera::spawn(source, Arc::clone(&feed), link.clone(), stop.clone())
+                    .map_err(io("the camera thread"))?,
+            ),
         };
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
@@ -554,4 +554,30 @@ fn log_guard(before: &GuardStats, now: &GuardStats) {
     if before.no_state_ticks == 0 && now.no_state_ticks > 0 && now.ticks == now.no_state_ticks {
         tracing::info!("waiting for the robot's first state: nothing is commanded until it comes");
     }
+}
+
+/// The camera thread's source for the scene's `[cloud]`; `None`: no cloud. A cloud file is read
+/// here, so that a bad one is refused at start.
+fn camera_source(
+    scene: &Scene,
+    start: [f64; 3],
+    seed: u64,
+) -> Result<Option<camera::Source>, DaemonError> {
+    let geometry = World::new(scene, start, seed)?;
+    Ok(match scene.cloud.source {
+        CloudKind::None => None,
+        CloudKind::Plane => Some(camera::Source::Simulated(
+            Box::new(Camera::new(scene, seed)),
+            Box::new(geometry),
+        )),
+        CloudKind::File => {
+            let file = camera::FileCloud::load(scene, &geometry)?;
+            let i = file.info();
+            tracing::info!(file = %i.path.display(), read = i.read,
+                skipped_non_finite = i.skipped_non_finite, kept = i.kept, voxel_m = ?i.voxel_m,
+                budget_acted = i.budget_acted, moving = scene.cloud.moving, "cloud from a file");
+            Some(camera::Source::File(Box::new(file)))
+        }
+        CloudKind::Ros2 => return Err(DaemonError::Ros2Cloud),
+    })
 }

@@ -208,7 +208,8 @@ impl Scene {
             "in [100, 20000] Hz",
         )?;
         let c = &self.cloud;
-        if c.source != CloudKind::None {
+        c.validate_external()?;
+        if c.source == CloudKind::Plane {
             for v in c.size_m {
                 field(
                     "cloud.size_m",
