@@ -13,6 +13,7 @@
 //! - [`topics`]: the bridge's topics, their defaults and remapping, `/mmt/theta`'s labels;
 //! - [`bridge`]: [`Ros2Bridge`], the robot bridge (`telerobot run --robot ros2`), with its
 //!   DDS I/O on a thread of its own;
+//! - [`camera`]: a camera's PointCloud2 topic → the contact detector's cloud frames;
 //! - [`arm`]: the test arm, a simulated robot on the graph (tests, figures, `mmt-test-arm`);
 //!
 //! What it is not: no estimation, contact or wire protocol of its own (`mmt`, `node`,
@@ -20,6 +21,7 @@
 
 pub mod arm;
 pub mod bridge;
+pub mod camera;
 pub mod graph;
 pub mod msg;
 pub mod pointcloud2;
@@ -27,4 +29,5 @@ pub mod state;
 pub mod topics;
 
 pub use bridge::{BridgeConfig, BridgeMonitor, BridgeReport, ModelOutlet, Ros2Bridge};
+pub use camera::{CameraConfig, CameraReport, CameraSource};
 pub use graph::{Graph, GraphConfig, GraphError, Qos, TopicName};

@@ -1,5 +1,5 @@
 //! The camera thread: the scene's cloud source — the simulated depth camera at its frame rate,
-//! or a PLY/PCD file ([`file`]) — off the real-time thread (`DESIGN.md` §2: nothing in the 1 kHz
+//! a PLY/PCD file ([`file`]) or a camera on a ROS 2 graph (`ros2::camera`) — off the real-time thread (`DESIGN.md` §2: nothing in the 1 kHz
 //! loop allocates).
 //!
 //! ```text
@@ -83,6 +83,8 @@ pub enum Source {
     Simulated(Box<Camera>, Box<World>),
     /// A PLY or PCD file, loaded at start.
     File(Box<FileCloud>),
+    /// A camera's PointCloud2 topic on a ROS 2 graph.
+    Ros2(Box<ros2::CameraSource>),
 }
 
 impl Source {
@@ -92,6 +94,7 @@ impl Source {
                 camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m)
             }
             Source::File(file) => file.frame(p.now_ns, &p.object_offset_m),
+            Source::Ros2(camera) => Ok(camera.poll(rt::monotonic_ns())),
         }
     }
 }
@@ -116,7 +119,12 @@ fn run(mut source: Source, feed: &CameraFeed, link: &TelerobotLink, shutdown: &S
         if let Some(p) = feed.pose.take() {
             pose = Some(p);
         }
-        let Some(p) = pose else { continue };
+        let Some(p) = pose.or_else(|| {
+            // A real camera does not wait for the robot's first state.
+            matches!(source, Source::Ros2(_)).then(CameraPose::default)
+        }) else {
+            continue;
+        };
         match source.frame(&p) {
             Ok(Some(frame)) => match CloudIndex::build(&frame) {
                 Ok(index) => {

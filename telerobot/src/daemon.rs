@@ -168,6 +168,8 @@ pub struct Summary {
     pub parameters: Vec<ParameterReport>,
     /// The ROS 2 bridge's report (`--robot ros2`).
     pub robot: Option<ros2::BridgeReport>,
+    /// The ROS 2 camera's counters (`[cloud] source = "ros2"`).
+    pub ros2_camera: Option<ros2::CameraReport>,
 }
 
 /// [`LoopSnapshot`] for reports.
@@ -206,6 +208,7 @@ pub struct Telerobot {
     scene: Scene,
     pins: Arc<transport::OperatorPins>,
     robot: Option<ros2::BridgeMonitor>,
+    ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
 }
 
 /// What the housekeeping thread shares.
@@ -256,7 +259,8 @@ impl Telerobot {
 
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = match camera_source(&config.scene, start, config.seed)? {
+        let (source, camera_counters) = camera_source(&config, built.graph.as_ref())?;
+        let camera = match source {
             None => None,
             Some(source) => Some(
                 camera::spawn(source, Arc::clone(&feed), link.clone(), stop.clone())
@@ -334,6 +338,7 @@ impl Telerobot {
             scene: config.scene,
             pins,
             robot: built.monitor,
+            ros2_camera: camera_counters,
         })
     }
 
@@ -410,6 +415,7 @@ impl Telerobot {
             link: self.link.stats().into(),
             parameters,
             robot: self.robot.as_ref().map(|m| m.report()),
+            ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
         };
         let t = &summary.timing;
         tracing::info!(
@@ -557,17 +563,24 @@ fn log_guard(before: &GuardStats, now: &GuardStats) {
 }
 
 /// The camera thread's source for the scene's `[cloud]`; `None`: no cloud. A cloud file is read
-/// here, so that a bad one is refused at start.
+/// and a camera topic subscribed here, so that a bad one is refused at start. A ROS 2 camera
+/// joins the robot's graph if there is one, else the domain of `ROS_DOMAIN_ID`.
 fn camera_source(
-    scene: &Scene,
-    start: [f64; 3],
-    seed: u64,
-) -> Result<Option<camera::Source>, DaemonError> {
-    let geometry = World::new(scene, start, seed)?;
-    Ok(match scene.cloud.source {
+    config: &RunConfig,
+    graph: Option<&ros2::Graph>,
+) -> Result<
+    (
+        Option<camera::Source>,
+        Option<Arc<ros2::camera::CameraCounters>>,
+    ),
+    DaemonError,
+> {
+    let scene = &config.scene;
+    let geometry = World::new(scene, config.start_m, config.seed)?;
+    let source = match scene.cloud.source {
         CloudKind::None => None,
         CloudKind::Plane => Some(camera::Source::Simulated(
-            Box::new(Camera::new(scene, seed)),
+            Box::new(Camera::new(scene, config.seed)),
             Box::new(geometry),
         )),
         CloudKind::File => {
@@ -578,6 +591,47 @@ fn camera_source(
                 budget_acted = i.budget_acted, moving = scene.cloud.moving, "cloud from a file");
             Some(camera::Source::File(Box::new(file)))
         }
-        CloudKind::Ros2 => return Err(DaemonError::Ros2Cloud),
-    })
+        CloudKind::Ros2 => {
+            let camera = ros2_camera(config, graph)?;
+            let counters = camera.counters();
+            return Ok((Some(camera::Source::Ros2(Box::new(camera))), Some(counters)));
+        }
+    };
+    Ok((source, None))
+}
+
+/// The scene's ROS 2 camera: its topic (the scene's, else the robot's `camera_points`, else
+/// `/mmt/camera/points`), pose, voxel grid and budget.
+fn ros2_camera(
+    config: &RunConfig,
+    graph: Option<&ros2::Graph>,
+) -> Result<ros2::CameraSource, DaemonError> {
+    let c = &config.scene.cloud;
+    let topic = match (&c.topic, &config.robot) {
+        (Some(t), _) => ros2::TopicName::parse("cloud.topic", t)?,
+        (None, RobotConfig::Ros2 { bridge, .. }) => bridge.topics.camera_points.clone(),
+        (None, RobotConfig::Sim) => ros2::topics::RobotTopics::default().camera_points,
+    };
+    let graph = match graph {
+        Some(g) => g.clone(),
+        None => ros2::Graph::join(&ros2::GraphConfig::from_env(None)?)?,
+    };
+    let camera = ros2::CameraSource::start(
+        &graph,
+        ros2::CameraConfig {
+            topic: topic.clone(),
+            qos: ros2::Qos::STREAM,
+            pipeline: ros2::pointcloud2::PipelineConfig {
+                // Validated with the scene.
+                camera_to_base: c.pose.pose().unwrap_or_default(),
+                voxel_m: c.voxel_m,
+                max_points: c.max_points,
+            },
+            stale_ns: (c.stale_ms * 1e6).round() as i64,
+        },
+    )?;
+    tracing::info!(%topic, domain = graph.config().domain_id, voxel_m = ?c.voxel_m,
+        max_points = c.max_points, stale_ms = c.stale_ms,
+        "cloud from a ROS 2 camera (sensor_msgs/PointCloud2, best-effort)");
+    Ok(camera)
 }

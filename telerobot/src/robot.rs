@@ -33,7 +33,6 @@ pub(crate) struct Built {
     pub(crate) outlet: Option<ModelOutlet>,
     pub(crate) monitor: Option<BridgeMonitor>,
     /// The ROS 2 participant, shared with a ROS 2 camera.
-    #[allow(dead_code)] // the ROS 2 camera source joins it (next)
     pub(crate) graph: Option<Graph>,
     /// For the start log.
     pub(crate) description: String,
