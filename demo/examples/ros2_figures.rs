@@ -9,9 +9,11 @@
 //! - the bridge's counters (out of order, duplicates, refusals, unpaired) and the command guard's.
 //!
 //! ```sh
-//! cargo run --release -p demo --example ros2_figures [-- SECONDS [SEED]]
+//! cargo run --release -p demo --example ros2_figures [-- SECONDS [SEED [plane]]]
 //! ```
-//! Each run takes SECONDS (default 60) of wall time plus a few seconds of start-up.
+//! Each run takes SECONDS (default 60) of wall time plus a few seconds of start-up. The ROS 2
+//! run's cloud comes from the arm's camera over PointCloud2 (`[cloud] source = "ros2"`);
+//! `plane` keeps the telerobot's simulated camera instead.
 
 #![allow(clippy::unwrap_used)]
 
@@ -21,7 +23,7 @@ use ros2::arm::{ArmCamera, ArmConfig, TestArm};
 use ros2::topics::RobotTopics;
 use ros2::{BridgeConfig, Graph, GraphConfig, Qos};
 use rt::Shutdown;
-use sim::scene::Scene;
+use sim::scene::{CloudKind, CloudPose, Scene};
 use telerobot::robot::RobotConfig;
 
 fn main() {
@@ -32,6 +34,9 @@ fn main() {
     let seed: u64 = args
         .next()
         .map_or(1, |s| s.parse().expect("SEED must be an integer"));
+    // `plane`: the telerobot keeps its simulated camera (the arm's clouds unused), to tell the
+    // bridge's share of a difference from the camera path's.
+    let ros2_camera = args.next().as_deref() != Some("plane");
     let base = DemoConfig {
         delay_ms: 0.0,
         seconds,
@@ -59,6 +64,17 @@ fn main() {
     }
     let mut graph = GraphConfig::from_env(None).unwrap();
     graph.localhost_only = true;
+    // The telerobot's cloud comes from the arm's camera over PointCloud2, posed by the scene.
+    let camera = ArmCamera::overhead(topics.camera_points.clone());
+    let mut ros_scene = Scene::exp1();
+    if ros2_camera {
+        ros_scene.cloud.source = CloudKind::Ros2;
+    }
+    ros_scene.cloud.topic = Some(topics.camera_points.to_string());
+    ros_scene.cloud.pose = CloudPose {
+        translation_m: camera.pose.translation_m,
+        quaternion_xyzw: camera.pose.quaternion_xyzw(),
+    };
     let scene = Scene::exp1();
     let arm = TestArm::start(
         &Graph::join(&graph).unwrap(),
@@ -70,7 +86,7 @@ fn main() {
             topics: topics.clone(),
             qos: Qos::STREAM,
             frame_id: "base".into(),
-            camera: Some(ArmCamera::overhead(topics.camera_points.clone())),
+            camera: Some(camera),
             spin_ns: 50_000,
         },
     )
@@ -84,6 +100,7 @@ fn main() {
                     ..BridgeConfig::default()
                 }),
             },
+            scene: ros_scene,
             ..base.clone()
         },
         Shutdown::new(),
@@ -152,6 +169,21 @@ fn main() {
         "published: {} targets, {} theta, {} in_contact",
         r.io.targets_published, r.io.theta_published, r.io.contact_published
     );
+    if let Some(c) = &t.ros2_camera {
+        println!(
+            "camera (PointCloud2): {} messages, {} frames, {} superseded, {} refused, {} \
+             undecodable, {} stale, oldest {:.1} ms; telerobot indexed {} / rejected {}",
+            c.messages,
+            c.frames,
+            c.superseded,
+            c.refused,
+            c.undecodable,
+            c.stale,
+            c.max_age_ms,
+            t.camera_frames.0,
+            t.camera_frames.1
+        );
+    }
     let g = &t.last.guard;
     println!(
         "command guard: {} ticks, {} without a state; stale {} / workspace {} / step {} / speed {} \
