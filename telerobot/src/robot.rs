@@ -130,10 +130,10 @@ pub struct RobotArgs {
     #[arg(long, value_name = "BOX", allow_hyphen_values = true)]
     pub workspace: Option<String>,
     /// Largest move between consecutive commands [m] (default: the scene's, else 0.002).
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub max_step_m: Option<f64>,
     /// Largest commanded speed [m/s] (default: the scene's, else 1.0).
-    #[arg(long, value_name = "M_PER_S")]
+    #[arg(long, value_name = "M_PER_S", allow_hyphen_values = true)]
     pub max_speed: Option<f64>,
 }
 
