@@ -128,13 +128,25 @@ impl VoxelGrid {
         }
         self.entries.clear();
         self.reset_table(points.len().min(1 << 16));
+        // A camera's points come row by row: consecutive points mostly share a voxel, so the
+        // last voxel is tried before the table.
+        let mut last: Option<(u64, usize)> = None;
         for (index, p) in points.iter().enumerate() {
             let Some(key) = pack(index, p, voxel_m)? else {
                 // Beyond the packed range: the general (sorting) path.
                 out.extend(voxel_downsample(points, voxel_m)?);
                 return Ok(());
             };
-            self.add(key, p);
+            match last {
+                Some((k, i)) if k == key => {
+                    let e = &mut self.entries[i];
+                    for (s, c) in e.sum.iter_mut().zip(p) {
+                        *s += f64::from(*c);
+                    }
+                    e.count += 1;
+                }
+                _ => last = Some((key, self.add(key, p))),
+            }
         }
         self.order.clear();
         self.order.extend(0..self.entries.len() as u32);
@@ -171,7 +183,6 @@ impl VoxelGrid {
         let max = max_points.max(1);
         let mut voxel = voxel_m;
         let mut acted = false;
-        let mut input: Vec<[f32; 3]> = Vec::new();
         for _ in 0..16 {
             if out.len() <= max {
                 break;
@@ -184,9 +195,7 @@ impl VoxelGrid {
             };
             voxel = Some(next);
             // Coarsen from the original points: the centroids stay those of the points.
-            input.clear();
-            input.extend_from_slice(points);
-            self.downsample(&input, next, out)?;
+            self.downsample(points, next, out)?;
         }
         Ok((voxel, acted))
     }
@@ -197,7 +206,8 @@ impl VoxelGrid {
         self.table.resize(size, EMPTY);
     }
 
-    fn add(&mut self, key: u64, p: &[f32; 3]) {
+    /// Adds `p` to the voxel `key`; the voxel's entry index.
+    fn add(&mut self, key: u64, p: &[f32; 3]) -> usize {
         if (self.entries.len() + 1) * 2 > self.table.len() {
             self.grow();
         }
@@ -212,7 +222,7 @@ impl VoxelGrid {
                     sum: p.map(f64::from),
                     count: 1,
                 });
-                return;
+                return self.entries.len() - 1;
             }
             let e = &mut self.entries[i as usize];
             if e.key == key {
@@ -220,7 +230,7 @@ impl VoxelGrid {
                     *s += f64::from(*c);
                 }
                 e.count += 1;
-                return;
+                return i as usize;
             }
             slot = (slot + 1) & mask;
         }
