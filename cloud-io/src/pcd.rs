@@ -153,57 +153,40 @@ fn points_element(seen: &Seen<'_>, data_line: usize) -> Result<Element, ParseErr
             b"DATA",
         ));
     };
-    let per_field = |entry: &Option<(usize, Vec<&str>)>,
-                     key: &str|
-     -> Result<(usize, Vec<String>), ParseError> {
-        match entry {
-            Some((line, v)) if v.len() == names.len() => {
-                Ok((*line, v.iter().map(|s| (*s).to_owned()).collect()))
-            }
-            Some((line, v)) => Err(header_error(
-                *line,
-                &format!("{key} with {} entries (one per field)", names.len()),
-                v.join(" ").as_bytes(),
-            )),
-            None => Err(header_error(
-                data_line,
-                &format!("a {key} line before DATA"),
-                b"DATA",
-            )),
-        }
-    };
-    let (size_line, sizes) = per_field(&seen.size, "SIZE")?;
-    let (type_line, types) = per_field(&seen.ty, "TYPE")?;
+    let fields = fields(seen, names, data_line)?;
+    let xyz = records::find_xyz(Format::Pcd, names, &fields)?;
+    let count = point_count(seen, *fields_line, data_line)?;
+    Ok(Element {
+        name: "points".into(),
+        count,
+        fields,
+        names: names.iter().map(|n| (*n).to_owned()).collect(),
+        xyz: Some(xyz),
+    })
+}
+
+/// The layout of a point: one field per name, typed by its `TYPE`/`SIZE` and `COUNT` entries.
+fn fields(seen: &Seen<'_>, names: &[&str], data_line: usize) -> Result<Vec<Field>, ParseError> {
+    let (size_line, sizes) = per_field(&seen.size, "SIZE", names.len(), data_line)?;
+    let (type_line, types) = per_field(&seen.ty, "TYPE", names.len(), data_line)?;
     let (count_line, counts) = match &seen.count {
         None => (data_line, vec!["1".to_owned(); names.len()]),
-        Some(_) => per_field(&seen.count, "COUNT")?,
+        Some(_) => per_field(&seen.count, "COUNT", names.len(), data_line)?,
     };
     let mut fields = Vec::with_capacity(names.len());
     for ((size, ty), count) in sizes.iter().zip(&types).zip(&counts) {
-        let scalar = match (ty.as_str(), size.as_str()) {
-            ("I", "1") => Scalar::I8,
-            ("I", "2") => Scalar::I16,
-            ("I", "4") => Scalar::I32,
-            ("I", "8") => Scalar::I64,
-            ("U", "1") => Scalar::U8,
-            ("U", "2") => Scalar::U16,
-            ("U", "4") => Scalar::U32,
-            ("U", "8") => Scalar::U64,
-            ("F", "4") => Scalar::F32,
-            ("F", "8") => Scalar::F64,
-            _ => {
-                let line = if matches!(ty.as_str(), "I" | "U" | "F") {
-                    size_line
-                } else {
-                    type_line
-                };
-                return Err(header_error(
-                    line,
-                    "TYPE I or U with SIZE 1, 2, 4 or 8, or TYPE F with SIZE 4 or 8",
-                    format!("TYPE {ty} SIZE {size}").as_bytes(),
-                ));
-            }
-        };
+        let scalar = scalar_type(ty, size).ok_or_else(|| {
+            let line = if matches!(ty.as_str(), "I" | "U" | "F") {
+                size_line
+            } else {
+                type_line
+            };
+            header_error(
+                line,
+                "TYPE I or U with SIZE 1, 2, 4 or 8, or TYPE F with SIZE 4 or 8",
+                format!("TYPE {ty} SIZE {size}").as_bytes(),
+            )
+        })?;
         let count: usize = count.parse().ok().filter(|&c| c >= 1).ok_or_else(|| {
             header_error(
                 count_line,
@@ -217,14 +200,61 @@ fn points_element(seen: &Seen<'_>, data_line: usize) -> Result<Element, ParseErr
             Field::Array(scalar, count)
         });
     }
-    let xyz = records::find_xyz(Format::Pcd, names, &fields)?;
+    Ok(fields)
+}
+
+/// The entries of a `SIZE`, `TYPE` or `COUNT` line (`key`), one per field, with the line's
+/// number.
+fn per_field(
+    entry: &Option<(usize, Vec<&str>)>,
+    key: &str,
+    fields: usize,
+    data_line: usize,
+) -> Result<(usize, Vec<String>), ParseError> {
+    match entry {
+        Some((line, v)) if v.len() == fields => {
+            Ok((*line, v.iter().map(|s| (*s).to_owned()).collect()))
+        }
+        Some((line, v)) => Err(header_error(
+            *line,
+            &format!("{key} with {fields} entries (one per field)"),
+            v.join(" ").as_bytes(),
+        )),
+        None => Err(header_error(
+            data_line,
+            &format!("a {key} line before DATA"),
+            b"DATA",
+        )),
+    }
+}
+
+/// The scalar type of a field of `TYPE` `ty` and `SIZE` `size`.
+fn scalar_type(ty: &str, size: &str) -> Option<Scalar> {
+    Some(match (ty, size) {
+        ("I", "1") => Scalar::I8,
+        ("I", "2") => Scalar::I16,
+        ("I", "4") => Scalar::I32,
+        ("I", "8") => Scalar::I64,
+        ("U", "1") => Scalar::U8,
+        ("U", "2") => Scalar::U16,
+        ("U", "4") => Scalar::U32,
+        ("U", "8") => Scalar::U64,
+        ("F", "4") => Scalar::F32,
+        ("F", "8") => Scalar::F64,
+        _ => return None,
+    })
+}
+
+/// The number of points, `WIDTH × HEIGHT` (`HEIGHT` 1 when absent), which `POINTS`, when
+/// given, must equal.
+fn point_count(seen: &Seen<'_>, fields_line: usize, data_line: usize) -> Result<u64, ParseError> {
     let width = seen
         .width
         .ok_or_else(|| header_error(data_line, "a WIDTH line before DATA", b"DATA"))?;
     let height = seen.height.unwrap_or(1);
     let count = width
         .checked_mul(height)
-        .ok_or_else(|| header_error(*fields_line, "WIDTH × HEIGHT within 64 bits", b"overflow"))?;
+        .ok_or_else(|| header_error(fields_line, "WIDTH × HEIGHT within 64 bits", b"overflow"))?;
     if let Some((line, declared)) = seen.points
         && declared != count
     {
@@ -234,11 +264,5 @@ fn points_element(seen: &Seen<'_>, data_line: usize) -> Result<Element, ParseErr
             format!("POINTS {declared}").as_bytes(),
         ));
     }
-    Ok(Element {
-        name: "points".into(),
-        count,
-        fields,
-        names: names.iter().map(|n| (*n).to_owned()).collect(),
-        xyz: Some(xyz),
-    })
+    Ok(count)
 }

@@ -86,9 +86,7 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
         Some((n, other)) => return Err(header_error(n, "`ply`", other)),
         None => return Err(header_error(1, "`ply`", b"")),
     }
-    let mut encoding = None;
-    let mut elements: Vec<Element> = Vec::new();
-    let mut names: Vec<Vec<String>> = Vec::new();
+    let mut declared = Declared::default();
     loop {
         let Some((n, raw)) = lines.next() else {
             return Err(header_error(lines.line + 1, "`end_header`", b"end of file"));
@@ -99,55 +97,12 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
         match words.as_slice() {
             ["end_header"] => break,
             [] | ["comment", ..] | ["obj_info", ..] => {}
-            ["format", kind, version] => {
-                if *version != "1.0" {
-                    return Err(header_error(n, "format version 1.0", raw));
-                }
-                encoding = Some(match *kind {
-                    "ascii" => PlyEncoding::Ascii,
-                    "binary_little_endian" => PlyEncoding::BinaryLittleEndian,
-                    "binary_big_endian" => PlyEncoding::BinaryBigEndian,
-                    _ => {
-                        return Err(header_error(
-                            n,
-                            "ascii, binary_little_endian or binary_big_endian",
-                            raw,
-                        ));
-                    }
-                });
-            }
-            ["element", name, count] => {
-                let count = count
-                    .parse::<u64>()
-                    .map_err(|_| header_error(n, "an element count (integer >= 0)", raw))?;
-                elements.push(Element {
-                    name: (*name).to_owned(),
-                    count,
-                    fields: Vec::new(),
-                    names: Vec::new(),
-                    xyz: None,
-                });
-                names.push(Vec::new());
-            }
+            ["format", kind, version] => declared.encoding = Some(encoding(n, raw, kind, version)?),
+            ["element", name, count] => declared.element(n, raw, name, count)?,
             ["property", "list", count, item, name] => {
-                let (Some(el), Some(el_names)) = (elements.last_mut(), names.last_mut()) else {
-                    return Err(header_error(n, "an `element` line before `property`", raw));
-                };
-                let count = scalar_type(count)
-                    .filter(|s| !matches!(s, Scalar::F32 | Scalar::F64))
-                    .ok_or_else(|| header_error(n, "an integer list-length type", raw))?;
-                let item = scalar_type(item).ok_or_else(|| header_error(n, TYPE_NAMES, raw))?;
-                el.fields.push(Field::List { count, item });
-                el_names.push((*name).to_owned());
+                declared.list_property(n, raw, count, item, name)?;
             }
-            ["property", ty, name] => {
-                let (Some(el), Some(el_names)) = (elements.last_mut(), names.last_mut()) else {
-                    return Err(header_error(n, "an `element` line before `property`", raw));
-                };
-                let ty = scalar_type(ty).ok_or_else(|| header_error(n, TYPE_NAMES, raw))?;
-                el.fields.push(Field::Scalar(ty));
-                el_names.push((*name).to_owned());
-            }
+            ["property", ty, name] => declared.scalar_property(n, raw, ty, name)?,
             _ => {
                 return Err(header_error(
                     n,
@@ -157,24 +112,127 @@ fn parse_header(lines: &mut Lines<'_>) -> Result<(PlyEncoding, Vec<Element>), Pa
             }
         }
     }
-    let Some(encoding) = encoding else {
-        return Err(header_error(
-            lines.line,
-            "a `format` line before `end_header`",
-            b"end_header",
-        ));
-    };
-    let Some(vertex) = elements.iter().position(|e| e.name == "vertex") else {
-        return Err(header_error(
-            lines.line,
-            "an `element vertex` before `end_header`",
-            b"end_header",
-        ));
-    };
-    let el = &mut elements[vertex];
-    el.xyz = Some(records::find_xyz(Format::Ply, &names[vertex], &el.fields)?);
-    for (el, names) in elements.iter_mut().zip(names) {
-        el.names = names;
+    declared.finish(lines.line)
+}
+
+/// The encoding a `format <kind> <version>` line names.
+fn encoding(n: usize, raw: &[u8], kind: &str, version: &str) -> Result<PlyEncoding, ParseError> {
+    if version != "1.0" {
+        return Err(header_error(n, "format version 1.0", raw));
     }
-    Ok((encoding, elements))
+    Ok(match kind {
+        "ascii" => PlyEncoding::Ascii,
+        "binary_little_endian" => PlyEncoding::BinaryLittleEndian,
+        "binary_big_endian" => PlyEncoding::BinaryBigEndian,
+        _ => {
+            return Err(header_error(
+                n,
+                "ascii, binary_little_endian or binary_big_endian",
+                raw,
+            ));
+        }
+    })
+}
+
+/// What the header lines read so far declared: the encoding, the elements and the names of
+/// their properties.
+#[derive(Default)]
+struct Declared {
+    encoding: Option<PlyEncoding>,
+    elements: Vec<Element>,
+    names: Vec<Vec<String>>,
+}
+
+impl Declared {
+    /// An `element <name> <count>` line.
+    fn element(&mut self, n: usize, raw: &[u8], name: &str, count: &str) -> Result<(), ParseError> {
+        let count = count
+            .parse::<u64>()
+            .map_err(|_| header_error(n, "an element count (integer >= 0)", raw))?;
+        self.elements.push(Element {
+            name: name.to_owned(),
+            count,
+            fields: Vec::new(),
+            names: Vec::new(),
+            xyz: None,
+        });
+        self.names.push(Vec::new());
+        Ok(())
+    }
+
+    /// A `property list <count type> <item type> <name>` line.
+    fn list_property(
+        &mut self,
+        n: usize,
+        raw: &[u8],
+        count: &str,
+        item: &str,
+        name: &str,
+    ) -> Result<(), ParseError> {
+        let (el, el_names) = self.last_element(n, raw)?;
+        let count = scalar_type(count)
+            .filter(|s| !matches!(s, Scalar::F32 | Scalar::F64))
+            .ok_or_else(|| header_error(n, "an integer list-length type", raw))?;
+        let item = scalar_type(item).ok_or_else(|| header_error(n, TYPE_NAMES, raw))?;
+        el.fields.push(Field::List { count, item });
+        el_names.push(name.to_owned());
+        Ok(())
+    }
+
+    /// A `property <type> <name>` line.
+    fn scalar_property(
+        &mut self,
+        n: usize,
+        raw: &[u8],
+        ty: &str,
+        name: &str,
+    ) -> Result<(), ParseError> {
+        let (el, el_names) = self.last_element(n, raw)?;
+        let ty = scalar_type(ty).ok_or_else(|| header_error(n, TYPE_NAMES, raw))?;
+        el.fields.push(Field::Scalar(ty));
+        el_names.push(name.to_owned());
+        Ok(())
+    }
+
+    /// The element a `property` line adds to, with its property names.
+    fn last_element(
+        &mut self,
+        n: usize,
+        raw: &[u8],
+    ) -> Result<(&mut Element, &mut Vec<String>), ParseError> {
+        let (Some(el), Some(el_names)) = (self.elements.last_mut(), self.names.last_mut()) else {
+            return Err(header_error(n, "an `element` line before `property`", raw));
+        };
+        Ok((el, el_names))
+    }
+
+    /// At `end_header` (line `end_line`): the encoding, and the elements with the vertex
+    /// element's `x`, `y`, `z` found.
+    fn finish(self, end_line: usize) -> Result<(PlyEncoding, Vec<Element>), ParseError> {
+        let Declared {
+            encoding,
+            mut elements,
+            names,
+        } = self;
+        let Some(encoding) = encoding else {
+            return Err(header_error(
+                end_line,
+                "a `format` line before `end_header`",
+                b"end_header",
+            ));
+        };
+        let Some(vertex) = elements.iter().position(|e| e.name == "vertex") else {
+            return Err(header_error(
+                end_line,
+                "an `element vertex` before `end_header`",
+                b"end_header",
+            ));
+        };
+        let el = &mut elements[vertex];
+        el.xyz = Some(records::find_xyz(Format::Ply, &names[vertex], &el.fields)?);
+        for (el, names) in elements.iter_mut().zip(names) {
+            el.names = names;
+        }
+        Ok((encoding, elements))
+    }
 }

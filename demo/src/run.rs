@@ -149,10 +149,7 @@ pub struct Outcome {
 pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError> {
     config.validate()?;
     // Written to files and read back, as `gen-cert` and the two `run`s do.
-    let dir = TempDir::new();
-    let names = ["telerobot", "localhost"];
-    let (_, tr_cert, _) = Identity::generate_files(dir.path(), "telerobot", &names)?;
-    let (_, op_cert, _) = Identity::generate_files(dir.path(), "operator", &["operator"])?;
+    let certs = Certificates::generate()?;
     let tuning = LinkTuning::with_expected_delay_ms(config.delay_ms)?;
     let spin_ns = (config.spin_us * 1e3).round() as i64;
     let periodic = PeriodicConfig {
@@ -163,8 +160,11 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     let scene = config.scene.clone();
     let telerobot = Telerobot::start(telerobot::RunConfig {
         listen: loopback,
-        identity: Identity::read_pem(dir.path(), "telerobot")?,
-        trusted_operators: vec![(op_cert.clone(), identity::read_cert(&op_cert)?)],
+        identity: Identity::read_pem(certs.dir.path(), "telerobot")?,
+        trusted_operators: vec![(
+            certs.operator.clone(),
+            identity::read_cert(&certs.operator)?,
+        )],
         tuning: tuning.clone(),
         start_m: telerobot::RunConfig::default_start(&scene),
         limits: scene.command_limits(),
@@ -175,12 +175,12 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         realtime_priority: config.realtime_priority,
     })?;
     let shim = if config.via_shim {
-        let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
-        let mut shim_config = ShimConfig::new(loopback, telerobot.local_addr());
-        shim_config.up = delay.clone();
-        shim_config.down = delay;
-        shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
-        Some(netem::shim::start(shim_config)?)
+        Some(start_shim(
+            config,
+            loopback,
+            telerobot.local_addr(),
+            spin_ns,
+        )?)
     } else {
         None
     };
@@ -190,40 +190,8 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     tracing::info!(telerobot = %telerobot.local_addr(), %connect, delay_ms = config.delay_ms,
         "demo: telerobot up");
 
-    let mut net = NetConfig::new(
-        connect,
-        Identity::read_pem(dir.path(), "operator")?,
-        identity::read_cert(&tr_cert)?,
-        tr_cert.display().to_string(),
-        "demo",
-    );
-    net.tuning = tuning;
-    let device = DeviceSpec::Scripted {
-        name: "exp1".to_owned(),
-    };
-    let operator = app::run(
-        RunConfig {
-            net,
-            device,
-            open: OpenOptions {
-                scripted_length_s: Some(config.seconds),
-                ..OpenOptions::default()
-            },
-            safety: SafetyConfig::default(),
-            seconds: Some(config.seconds),
-            periodic,
-            realtime_priority: config.realtime_priority,
-            first_session_timeout: Some(Duration::from_secs(15)),
-            node: node::operator::OperatorConfig::default(),
-            experiment: "demo".to_owned(),
-            known: Some(Known {
-                scene,
-                seed: config.seed,
-                delay_ms: config.delay_ms,
-            }),
-        },
-        shutdown,
-    );
+    let net = operator_net(&certs, connect, tuning)?;
+    let operator = app::run(operator_config(config, net, periodic, scene), shutdown);
     let summary = telerobot.stop();
     let shim_stats = shim.map(netem::ShimHandle::shutdown).transpose();
     let mut operator = operator?;
@@ -237,6 +205,96 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         },
         series: operator.series,
     })
+}
+
+/// Starts the netem shim on `listen`, delaying each direction to `telerobot` by the demo's
+/// delay and spinning half the loops' spin window.
+fn start_shim(
+    config: &DemoConfig,
+    listen: SocketAddr,
+    telerobot: SocketAddr,
+    spin_ns: i64,
+) -> Result<netem::ShimHandle, DemoError> {
+    let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    let mut shim_config = ShimConfig::new(listen, telerobot);
+    shim_config.up = delay.clone();
+    shim_config.down = delay;
+    shim_config.spin_window_ns = u64::try_from(spin_ns / 2).unwrap_or(0);
+    Ok(netem::shim::start(shim_config)?)
+}
+
+/// The operator's connection to `connect`, with its identity and the telerobot's pinned
+/// certificate.
+fn operator_net(
+    certs: &Certificates,
+    connect: SocketAddr,
+    tuning: LinkTuning,
+) -> Result<NetConfig, DemoError> {
+    let mut net = NetConfig::new(
+        connect,
+        Identity::read_pem(certs.dir.path(), "operator")?,
+        identity::read_cert(&certs.telerobot)?,
+        certs.telerobot.display().to_string(),
+        "demo",
+    );
+    net.tuning = tuning;
+    Ok(net)
+}
+
+/// The operator app's settings: the scripted exp-1 device for the demo's length, told the
+/// scene, seed and delay it runs against.
+fn operator_config(
+    config: &DemoConfig,
+    net: NetConfig,
+    periodic: PeriodicConfig,
+    scene: Scene,
+) -> RunConfig {
+    let device = DeviceSpec::Scripted {
+        name: "exp1".to_owned(),
+    };
+    RunConfig {
+        net,
+        device,
+        open: OpenOptions {
+            scripted_length_s: Some(config.seconds),
+            ..OpenOptions::default()
+        },
+        safety: SafetyConfig::default(),
+        seconds: Some(config.seconds),
+        periodic,
+        realtime_priority: config.realtime_priority,
+        first_session_timeout: Some(Duration::from_secs(15)),
+        node: node::operator::OperatorConfig::default(),
+        experiment: "demo".to_owned(),
+        known: Some(Known {
+            scene,
+            seed: config.seed,
+            delay_ms: config.delay_ms,
+        }),
+    }
+}
+
+/// The throw-away certificates of both ends, as files in a temporary directory.
+struct Certificates {
+    dir: TempDir,
+    /// The telerobot's certificate file.
+    telerobot: PathBuf,
+    /// The operator's certificate file.
+    operator: PathBuf,
+}
+
+impl Certificates {
+    fn generate() -> Result<Certificates, DemoError> {
+        let dir = TempDir::new();
+        let names = ["telerobot", "localhost"];
+        let (_, telerobot, _) = Identity::generate_files(dir.path(), "telerobot", &names)?;
+        let (_, operator, _) = Identity::generate_files(dir.path(), "operator", &["operator"])?;
+        Ok(Certificates {
+            dir,
+            telerobot,
+            operator,
+        })
+    }
 }
 
 /// A temporary directory removed on drop.

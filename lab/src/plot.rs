@@ -1,6 +1,7 @@
 //! Line plots with `plotters`, rendered in memory with an embedded font (DejaVu Sans, see
 //! `assets/DejaVuSans-LICENSE.txt`), so no system font library is needed.
 
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::prelude::*;
 use std::sync::Once;
 use thiserror::Error;
@@ -110,104 +111,124 @@ fn draw_panel<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let keep = |x: f64, y: f64| {
-        x.is_finite() && y.is_finite() && (!panel.log_x || x > 0.0) && (!panel.log_y || y > 0.0)
-    };
     let pts: Vec<(f64, f64)> = panel
         .series
         .iter()
         .flat_map(|s| s.points.iter().copied())
-        .filter(|&(x, y)| keep(x, y))
+        .filter(|&(x, y)| panel.keeps(x, y))
         .collect();
-    let range = |vals: &mut dyn Iterator<Item = f64>, log: bool| {
-        let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(v), h.max(v))
-        });
-        if !lo.is_finite() {
-            return if log { (0.1, 10.0) } else { (0.0, 1.0) };
-        }
-        if log {
-            (lo / 1.5, hi * 1.5)
-        } else if hi > lo {
-            let pad = 0.05 * (hi - lo);
-            (lo - pad, hi + pad)
-        } else {
-            (lo - 1.0, hi + 1.0)
-        }
-    };
-    let (x0, x1) = range(&mut pts.iter().map(|p| p.0), panel.log_x);
-    let (y0, y1) = range(&mut pts.iter().map(|p| p.1), panel.log_y);
+    let (x0, x1) = axis_range(&mut pts.iter().map(|p| p.0), panel.log_x);
+    let (y0, y1) = axis_range(&mut pts.iter().map(|p| p.1), panel.log_y);
     let mut builder = ChartBuilder::on(area);
     builder
         .caption(&panel.title, ("sans-serif", 16))
         .margin(8)
         .x_label_area_size(36)
         .y_label_area_size(64);
-    macro_rules! finish {
-        ($chart:expr) => {{
-            let mut chart = $chart;
-            chart
-                .configure_mesh()
-                .x_desc(panel.x_label.as_str())
-                .y_desc(panel.y_label.as_str())
-                .label_style(("sans-serif", 12))
-                .x_label_formatter(&tick)
-                .y_label_formatter(&tick)
-                .draw()
-                .map_err(draw_err)?;
-            for (i, s) in panel.series.iter().enumerate() {
-                let color = Palette99::pick(i).to_rgba();
-                let line: Vec<(f64, f64)> = s
-                    .points
-                    .iter()
-                    .copied()
-                    .filter(|&(x, y)| keep(x, y))
-                    .collect();
-                chart
-                    .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
-                    .map_err(draw_err)?
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-                    });
-                if s.markers {
-                    chart
-                        .draw_series(line.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                        .map_err(draw_err)?;
-                }
-            }
-            if panel.series.len() > 1 {
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .label_font(("sans-serif", 11))
-                    .draw()
-                    .map_err(draw_err)?;
-            }
-        }};
-    }
     match (panel.log_x, panel.log_y) {
-        (false, false) => finish!(
+        (false, false) => draw_lines(
             builder
                 .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(draw_err)?
+                .map_err(draw_err)?,
+            panel,
         ),
-        (true, false) => finish!(
+        (true, false) => draw_lines(
             builder
                 .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
-                .map_err(draw_err)?
+                .map_err(draw_err)?,
+            panel,
         ),
-        (false, true) => finish!(
+        (false, true) => draw_lines(
             builder
                 .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
-                .map_err(draw_err)?
+                .map_err(draw_err)?,
+            panel,
         ),
-        (true, true) => finish!(
+        (true, true) => draw_lines(
             builder
                 .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-                .map_err(draw_err)?
+                .map_err(draw_err)?,
+            panel,
         ),
+    }
+}
+
+impl Panel {
+    /// Whether a point can be drawn: finite, and positive on a log axis.
+    fn keeps(&self, x: f64, y: f64) -> bool {
+        x.is_finite() && y.is_finite() && (!self.log_x || x > 0.0) && (!self.log_y || y > 0.0)
+    }
+}
+
+/// The span of an axis holding `vals`: 5 % padding on a linear axis, a factor 1.5 on a log
+/// one, and a default span when there is nothing (or one value) to show.
+fn axis_range(vals: &mut dyn Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    if !lo.is_finite() {
+        return if log { (0.1, 10.0) } else { (0.0, 1.0) };
+    }
+    if log {
+        (lo / 1.5, hi * 1.5)
+    } else if hi > lo {
+        let pad = 0.05 * (hi - lo);
+        (lo - pad, hi + pad)
+    } else {
+        (lo - 1.0, hi + 1.0)
+    }
+}
+
+/// Draws the mesh and the panel's lines (with markers where asked) on `chart`, and the legend
+/// when there is more than one line.
+fn draw_lines<'a, DB, X, Y>(
+    mut chart: ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    panel: &Panel,
+) -> Result<(), PlotError>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(panel.x_label.as_str())
+        .y_desc(panel.y_label.as_str())
+        .label_style(("sans-serif", 12))
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
+        .draw()
+        .map_err(draw_err)?;
+    for (i, s) in panel.series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let line: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|&(x, y)| panel.keeps(x, y))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
+            .map_err(draw_err)?
+            .label(s.name.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        if s.markers {
+            chart
+                .draw_series(line.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                .map_err(draw_err)?;
+        }
+    }
+    if panel.series.len() > 1 {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 11))
+            .draw()
+            .map_err(draw_err)?;
     }
     Ok(())
 }

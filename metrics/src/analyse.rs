@@ -309,79 +309,10 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
     let dt = s.dt_s();
     let first_contact = s.contact_true.iter().position(|c| *c == Some(true));
     let render_start = s.rendering.iter().position(|r| *r);
-    let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
-    let rms_pct_vs = |reference: &[Option<[f64; 3]>],
-                      from: usize,
-                      rendered: &[[f64; 3]],
-                      proj: Option<[f64; 3]>|
-     -> Option<f64> {
-        let (mut e2, mut m2) = (0.0, 0.0);
-        for (m, r) in reference.iter().zip(rendered).skip(from) {
-            let Some(m) = *m else { continue };
-            let e = vec3::sub(*r, m);
-            match proj {
-                Some(a) => {
-                    e2 += vec3::dot(e, a).powi(2);
-                    m2 += vec3::dot(m, a).powi(2);
-                }
-                None => {
-                    e2 += vec3::norm2(e);
-                    m2 += vec3::norm2(m);
-                }
-            }
-        }
-        (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
-    };
     let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| {
         rms_pct_vs(&s.measured, from, rendered, proj)
     };
     let after = render_start.unwrap_or(s.len());
-    let (mut e2, mut m2) = ([0.0; BANDS.len()], [0.0; BANDS.len()]);
-    for c in 0..3 {
-        let err: Vec<f64> = (after..s.len())
-            .map(|i| s.rendered[i][c] - measured(i)[c])
-            .collect();
-        let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
-        let (be, bm) = (bands_rms(&err, dt, &BANDS), bands_rms(&meas, dt, &BANDS));
-        for b in 0..BANDS.len() {
-            e2[b] += be[b] * be[b];
-            m2[b] += bm[b] * bm[b];
-        }
-    }
-    let bands = BANDS
-        .iter()
-        .enumerate()
-        .map(|(b, &(lo, hi))| Band {
-            lo_hz: lo,
-            hi_hz: hi,
-            rms_error_pct: (m2[b] > 0.0).then(|| 100.0 * (e2[b] / m2[b]).sqrt()),
-        })
-        .collect();
-    let per_window = (1.0 / dt).round() as usize;
-    let error_over_time = (0..s.len())
-        .step_by(per_window)
-        .map(|start| {
-            let end = (start + per_window).min(s.len());
-            let (mut e2, mut m2, mut n) = (0.0, 0.0, 0);
-            for i in start..end {
-                if let Some(m) = s.measured[i] {
-                    e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
-                    m2 += vec3::norm2(m);
-                    n += 1;
-                }
-            }
-            let rms_m = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };
-            Window {
-                t_s: start as f64 * dt,
-                rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
-            }
-        })
-        .collect();
-    let stable_from = s.stable.iter().rposition(|st| !st).map_or(0, |i| i + 1);
-    let time_to_stable_s = match first_contact {
-        Some(fc) if stable_from < s.stable.len() => Some((stable_from.max(fc) - fc) as f64 * dt),
-        _ => None,
-    };
     ExperimentReport {
         experiment: info.experiment.clone(),
         scene: info.scene.clone(),
@@ -397,10 +328,10 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
             &s.rendered,
             None,
         ),
-        bands,
+        bands: bands(s, after),
         rms_error_pct_remote_contact: rms_pct(after, &s.rendered_remote, None),
-        error_over_time,
-        time_to_stable_s,
+        error_over_time: error_over_time(s),
+        time_to_stable_s: time_to_stable_s(s, first_contact),
         render_start_s: match (first_contact, render_start) {
             (Some(fc), Some(rs)) => Some(rs.saturating_sub(fc) as f64 * dt),
             _ => None,
@@ -422,6 +353,97 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         operator_stats: nodes.operator,
         shadow_stats: nodes.shadow,
         telerobot_stats: nodes.telerobot,
+    }
+}
+
+/// RMS of `rendered − reference` over RMS `reference` from tick `from` on [%], over the ticks
+/// with a reference; along `proj` when given, else of the whole vectors.
+fn rms_pct_vs(
+    reference: &[Option<[f64; 3]>],
+    from: usize,
+    rendered: &[[f64; 3]],
+    proj: Option<[f64; 3]>,
+) -> Option<f64> {
+    let (mut e2, mut m2) = (0.0, 0.0);
+    for (m, r) in reference.iter().zip(rendered).skip(from) {
+        let Some(m) = *m else { continue };
+        let e = vec3::sub(*r, m);
+        match proj {
+            Some(a) => {
+                e2 += vec3::dot(e, a).powi(2);
+                m2 += vec3::dot(m, a).powi(2);
+            }
+            None => {
+                e2 += vec3::norm2(e);
+                m2 += vec3::norm2(m);
+            }
+        }
+    }
+    (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
+}
+
+/// The error from tick `after` on, per band of [`BANDS`]: each band's error and measured
+/// energy summed over the three axes.
+fn bands(s: &Series, after: usize) -> Vec<Band> {
+    let dt = s.dt_s();
+    let measured = |i: usize| s.measured[i].unwrap_or(s.rendered[i]);
+    let (mut e2, mut m2) = ([0.0; BANDS.len()], [0.0; BANDS.len()]);
+    for c in 0..3 {
+        let err: Vec<f64> = (after..s.len())
+            .map(|i| s.rendered[i][c] - measured(i)[c])
+            .collect();
+        let meas: Vec<f64> = (after..s.len()).map(|i| measured(i)[c]).collect();
+        let (be, bm) = (bands_rms(&err, dt, &BANDS), bands_rms(&meas, dt, &BANDS));
+        for b in 0..BANDS.len() {
+            e2[b] += be[b] * be[b];
+            m2[b] += bm[b] * bm[b];
+        }
+    }
+    BANDS
+        .iter()
+        .enumerate()
+        .map(|(b, &(lo, hi))| Band {
+            lo_hz: lo,
+            hi_hz: hi,
+            rms_error_pct: (m2[b] > 0.0).then(|| 100.0 * (e2[b] / m2[b]).sqrt()),
+        })
+        .collect()
+}
+
+/// The error per 1 s window; none where the measured force's RMS is 0.05 N or less.
+fn error_over_time(s: &Series) -> Vec<Window> {
+    let dt = s.dt_s();
+    let per_window = (1.0 / dt).round() as usize;
+    (0..s.len())
+        .step_by(per_window)
+        .map(|start| {
+            let end = (start + per_window).min(s.len());
+            let (mut e2, mut m2, mut n) = (0.0, 0.0, 0);
+            for i in start..end {
+                if let Some(m) = s.measured[i] {
+                    e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
+                    m2 += vec3::norm2(m);
+                    n += 1;
+                }
+            }
+            let rms_m = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };
+            Window {
+                t_s: start as f64 * dt,
+                rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
+            }
+        })
+        .collect()
+}
+
+/// From the first contact until the parameters pass every gate and keep passing to the end
+/// [s]; `None` without contact or if they do not pass at the end.
+fn time_to_stable_s(s: &Series, first_contact: Option<usize>) -> Option<f64> {
+    let stable_from = s.stable.iter().rposition(|st| !st).map_or(0, |i| i + 1);
+    match first_contact {
+        Some(fc) if stable_from < s.stable.len() => {
+            Some((stable_from.max(fc) - fc) as f64 * s.dt_s())
+        }
+        _ => None,
     }
 }
 

@@ -5,13 +5,10 @@ use std::fmt::Write;
 
 use mmt::model::backsolve::Confidence;
 
-use crate::ExperimentReport;
+use crate::{ExperimentReport, ParameterReport};
 
 /// The stdout table: this run's figures next to the thesis's.
 pub fn table(r: &ExperimentReport) -> String {
-    let pct = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2} %"));
-    let sec = |v: Option<f64>| v.map_or("never".to_string(), |v| format!("{v:.2} s"));
-    let ms = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1} ms"));
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -19,22 +16,58 @@ pub fn table(r: &ExperimentReport) -> String {
         r.experiment, r.scene, r.trajectory, r.sim_seconds, r.seed, r.delay_ms
     );
     let _ = writeln!(out, "{:<46} {:>14}   thesis", "", "this run");
-    let mut row = |name: &str, value: String, thesis: &str| {
-        let _ = writeln!(out, "{name:<46} {value:>14}   {thesis}");
-    };
-    row("RMS error, from first contact", pct(r.rms_error_pct), "—");
+    error_rows(&mut out, r);
+    timing_rows(&mut out, r);
+    for p in &r.parameters {
+        parameter_lines(&mut out, p);
+    }
+    if !r.left_out.is_empty() {
+        let _ = writeln!(out, "left out: {}", r.left_out.join("; "));
+    }
+    out
+}
+
+/// One row: name, this run's value, the thesis's.
+fn row(out: &mut String, name: &str, value: String, thesis: &str) {
+    let _ = writeln!(out, "{name:<46} {value:>14}   {thesis}");
+}
+
+fn pct(v: Option<f64>) -> String {
+    v.map_or("—".to_string(), |v| format!("{v:.2} %"))
+}
+
+fn sec(v: Option<f64>) -> String {
+    v.map_or("never".to_string(), |v| format!("{v:.2} s"))
+}
+
+fn ms(v: Option<f64>) -> String {
+    v.map_or("—".to_string(), |v| format!("{v:.1} ms"))
+}
+
+/// The rendered force's RMS errors: overall, after stable (with the tangential axis, the
+/// true force and each band), and with remote-only contact.
+fn error_rows(out: &mut String, r: &ExperimentReport) {
     row(
+        out,
+        "RMS error, from first contact",
+        pct(r.rms_error_pct),
+        "—",
+    );
+    row(
+        out,
         "RMS error, after the parameters are stable",
         pct(r.rms_error_pct_after_stable),
         "~30 % low freq., up to 100 % high",
     );
     row(
+        out,
         "  tangential axis (the thesis's y) only",
         pct(r.tangential_rms_error_pct_after_stable),
         "",
     );
     if r.rms_error_pct_after_stable_vs_true_force.is_some() {
         row(
+            out,
             "  against the true force (no sensor noise, bias)",
             pct(r.rms_error_pct_after_stable_vs_true_force),
             "",
@@ -42,6 +75,7 @@ pub fn table(r: &ExperimentReport) -> String {
     }
     for b in &r.bands {
         row(
+            out,
             &format!("  band {:.1}–{:.1} Hz", b.lo_hz, b.hi_hz),
             pct(b.rms_error_pct),
             if b.hi_hz <= 0.3 {
@@ -52,32 +86,43 @@ pub fn table(r: &ExperimentReport) -> String {
         );
     }
     row(
+        out,
         "RMS error with remote-only contact (thesis way)",
         pct(r.rms_error_pct_remote_contact),
         "",
     );
+}
+
+/// How soon things happen: stable parameters, rendering, the estimator's fit, and the contact
+/// switch latencies.
+fn timing_rows(out: &mut String, r: &ExperimentReport) {
     row(
+        out,
         "time to stable parameters",
         sec(r.time_to_stable_s),
         "16.1 s (exp 2)",
     );
     row(
+        out,
         "rendering starts after first contact",
         sec(r.render_start_s),
         "",
     );
     row(
+        out,
         "estimator reconstruction error",
         pct(r.reconstruction_error_pct),
         "~5 % (exp 2)",
     );
     let l = &r.contact_switch_latency_ms;
     row(
+        out,
         "contact switch latency, operator-side detection",
         ms(l.local),
         "—",
     );
     row(
+        out,
         "contact switch latency, remote state only",
         ms(l.remote_only),
         &format!(
@@ -85,35 +130,33 @@ pub fn table(r: &ExperimentReport) -> String {
             r.thesis.contact_switch_latency_ms
         ),
     );
-    for p in &r.parameters {
-        let values: Vec<String> = p
-            .values
-            .iter()
-            .map(|(name, truth, est, err)| {
-                if err.is_finite() {
-                    format!("{name} {est:.4} ({truth}, {err:+.1} %)")
-                } else {
-                    format!("{name} {est:.4} ({truth})")
-                }
-            })
-            .collect();
-        let _ = writeln!(out, "parameters, {}: {}", p.axes, values.join(", "));
-        let confidence = match p.confidence {
-            Confidence::Identified => "identified",
-            Confidence::Low { .. } => "LOW, parameter errors amplified",
-        };
-        let updates = match (p.low_confidence_updates, p.confirmed_updates) {
-            (Some(low), Some(all)) => format!(", {low} of {all} confirmed sets low-confidence"),
-            _ => String::new(),
-        };
-        let _ = writeln!(
-            out,
-            "back-solve confidence, {}: {confidence} (condition {:.1}){updates}",
-            p.axes, p.condition
-        );
-    }
-    if !r.left_out.is_empty() {
-        let _ = writeln!(out, "left out: {}", r.left_out.join("; "));
-    }
-    out
+}
+
+/// One set's estimated parameters against the truth, and the back-solve's confidence in them.
+fn parameter_lines(out: &mut String, p: &ParameterReport) {
+    let values: Vec<String> = p
+        .values
+        .iter()
+        .map(|(name, truth, est, err)| {
+            if err.is_finite() {
+                format!("{name} {est:.4} ({truth}, {err:+.1} %)")
+            } else {
+                format!("{name} {est:.4} ({truth})")
+            }
+        })
+        .collect();
+    let _ = writeln!(out, "parameters, {}: {}", p.axes, values.join(", "));
+    let confidence = match p.confidence {
+        Confidence::Identified => "identified",
+        Confidence::Low { .. } => "LOW, parameter errors amplified",
+    };
+    let updates = match (p.low_confidence_updates, p.confirmed_updates) {
+        (Some(low), Some(all)) => format!(", {low} of {all} confirmed sets low-confidence"),
+        _ => String::new(),
+    };
+    let _ = writeln!(
+        out,
+        "back-solve confidence, {}: {confidence} (condition {:.1}){updates}",
+        p.axes, p.condition
+    );
 }

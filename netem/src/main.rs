@@ -227,7 +227,7 @@ fn lookup<'m>(
 }
 
 fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfig> {
-    let get = |name| lookup(m, direction, name);
+    let get = |name: &str| lookup(m, direction, name);
     let mut c = match get("profile") {
         Some((flag, name)) => LinkConfig::profile(name).ok_or_else(|| {
             let names: Vec<&str> = PROFILES.iter().map(|(n, _)| *n).collect();
@@ -238,9 +238,35 @@ fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfi
         })?,
         None => LinkConfig::default(),
     };
-    let duration =
-        |(flag, v): (&str, &str)| parse_duration_ns(v).with_context(|| format!("--{flag}"));
-    let percent = |(flag, v): (&str, &str)| parse_percent(v).with_context(|| format!("--{flag}"));
+    delay_settings(&mut c, get)?;
+    if let Some(loss) = loss_setting(m, direction)? {
+        c.loss = loss;
+    }
+    duplicate_and_reorder_settings(&mut c, get)?;
+    rate_settings(&mut c, get)?;
+    c.validate().map_err(|e| {
+        let flag = match e.field {
+            "delay_ns" => "delay",
+            "jitter_ns" => "jitter",
+            "jitter_correlation" => "correlation",
+            "duplicate_probability" => "duplicate",
+            "reorder_probability" => "reorder",
+            "reorder_gap" => "gap",
+            "rate_bit_per_s" => "rate",
+            "overhead_bytes" => "overhead",
+            "limit_packets" => "limit",
+            _ => "loss-ge",
+        };
+        anyhow!("{direction} link (--{flag} / --{direction}-{flag}): {e}")
+    })?;
+    Ok(c)
+}
+
+/// `--delay`, `--jitter`, `--correlation`, `--distribution` and `--order` as `get` finds them.
+fn delay_settings<'m>(
+    c: &mut LinkConfig,
+    get: impl Fn(&str) -> Option<(&'static str, &'m str)>,
+) -> anyhow::Result<()> {
     if let Some(v) = get("delay") {
         c.delay_ns = duration(v)?;
     }
@@ -266,9 +292,14 @@ fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfi
             _ => bail!("--{flag}: `{v}` is not an order: expected keep or free"),
         };
     }
-    if let Some(loss) = loss_setting(m, direction)? {
-        c.loss = loss;
-    }
+    Ok(())
+}
+
+/// `--duplicate`, `--reorder` and `--gap` as `get` finds them.
+fn duplicate_and_reorder_settings<'m>(
+    c: &mut LinkConfig,
+    get: impl Fn(&str) -> Option<(&'static str, &'m str)>,
+) -> anyhow::Result<()> {
     if let Some(v) = get("duplicate") {
         c.duplicate_probability = percent(v)?;
     }
@@ -278,6 +309,14 @@ fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfi
     if let Some(v) = get("gap") {
         c.reorder_gap = integer(v, "a gap: expected an integer 1..=4294967295")?;
     }
+    Ok(())
+}
+
+/// `--rate`, `--overhead` and `--limit` as `get` finds them.
+fn rate_settings<'m>(
+    c: &mut LinkConfig,
+    get: impl Fn(&str) -> Option<(&'static str, &'m str)>,
+) -> anyhow::Result<()> {
     if let Some((flag, v)) = get("rate") {
         c.rate_bit_per_s = Some(parse_rate_bit_per_s(v).with_context(|| format!("--{flag}"))?);
     }
@@ -293,22 +332,17 @@ fn link_config(m: &ArgMatches, direction: Direction) -> anyhow::Result<LinkConfi
             "a limit: expected an integer number of packets, 1..=10000000",
         )?;
     }
-    c.validate().map_err(|e| {
-        let flag = match e.field {
-            "delay_ns" => "delay",
-            "jitter_ns" => "jitter",
-            "jitter_correlation" => "correlation",
-            "duplicate_probability" => "duplicate",
-            "reorder_probability" => "reorder",
-            "reorder_gap" => "gap",
-            "rate_bit_per_s" => "rate",
-            "overhead_bytes" => "overhead",
-            "limit_packets" => "limit",
-            _ => "loss-ge",
-        };
-        anyhow!("{direction} link (--{flag} / --{direction}-{flag}): {e}")
-    })?;
-    Ok(c)
+    Ok(())
+}
+
+/// A duration flag value [ns].
+fn duration((flag, v): (&str, &str)) -> anyhow::Result<u64> {
+    parse_duration_ns(v).with_context(|| format!("--{flag}"))
+}
+
+/// A percentage flag value, as a fraction.
+fn percent((flag, v): (&str, &str)) -> anyhow::Result<f64> {
+    parse_percent(v).with_context(|| format!("--{flag}"))
 }
 
 /// An integer flag value; `expected` completes "`VALUE` is not …".

@@ -16,14 +16,12 @@
 
 #![allow(clippy::unwrap_used)]
 
-#[path = "../tests/common/mod.rs"]
-mod common;
-
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use common::*;
 use netem::{LinkConfig, ShimConfig};
+use testkit::net::*;
+use testkit::*;
 
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() {
@@ -41,7 +39,11 @@ async fn main() {
 
 async fn run_case(name: &str, delay_ms: i64, seconds: u64) {
     let certs = Certs::new();
-    let telerobot = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
+    let telerobot = TelerobotServer::start(
+        &certs.telerobot,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
     let shim = (delay_ms > 0).then(|| {
         let mut config = ShimConfig::new("127.0.0.1:0".parse().unwrap(), telerobot.addr);
         config.up = LinkConfig::delay((delay_ms * MS) as u64);
@@ -50,7 +52,7 @@ async fn run_case(name: &str, delay_ms: i64, seconds: u64) {
         netem::shim::start(config).unwrap()
     });
     let addr = shim.as_ref().map_or(telerobot.addr, |s| s.local_addr());
-    let operator = start_operator(addr, &certs.operator, &certs.telerobot, "report");
+    let operator = OperatorClient::start(addr, &certs.operator, &certs.telerobot, "report");
     eventually(Duration::from_secs(15), || {
         operator.link.status().connected().then_some(())
     })

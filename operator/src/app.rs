@@ -18,13 +18,16 @@ use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown};
 use sim::scene::Scene;
 
+use crate::device::HapticDevice;
 use crate::device::{DeviceError, DeviceSpec, OpenOptions, open_device};
-use crate::haptic::{Exchange, HapticLoop};
+use crate::haptic::{Exchange, HapticLoop, LoopEnd};
 use crate::helper;
+use crate::helper::Recording;
 use crate::net::{self, NetConfig, NetError, OperatorLink};
 use crate::report::{self, NetworkedReport, RunFacts};
 use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
 use node::{OperatorSettings, SettingsError};
+use protocol::telerobot_to_operator::Welcome;
 
 /// Everything `operator run` needs, validated.
 #[derive(Clone, Debug)]
@@ -131,37 +134,13 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     if !spec.outputs_force {
         tracing::warn!(device = %config.device, "{}", crate::cli::no_force_warning(&config.device));
     }
-    let runtime = transport::network_runtime("operator-net").map_err(io("the network runtime"))?;
-    let (link, net_io) = net::link(
-        net::DEFAULT_OUTBOX_CAPACITY,
-        net::DEFAULT_MEASUREMENT_CAPACITY,
-    )
-    .map_err(io("the loop's hand-off"))?;
-    let net_stop = Shutdown::new();
-    let net_task = {
-        let stop = net_stop.clone();
-        runtime.spawn(net::connect_and_run(
-            config.net.clone(),
-            net_io,
-            async move {
-                stop.wait().await;
-            },
-        ))
-    };
-    let stop_network = |task: tokio::task::JoinHandle<Result<(), NetError>>| {
-        net_stop.trigger();
-        runtime
-            .block_on(async { tokio::time::timeout(Duration::from_secs(3), task).await })
-            .ok()
-            .and_then(Result::ok)
-            .unwrap_or(Ok(()))
-    };
+    let (link, mut network) = Network::start(&config.net)?;
 
     // The first session: its Welcome says what to render.
-    let session = match wait_for_session(&config, &link, &shutdown, &net_task) {
+    let session = match wait_for_session(&config, &link, &shutdown, &network.task) {
         Ok(session) => session,
         Err(e) => {
-            let net_error = stop_network(net_task).err();
+            let net_error = network.stop().err();
             return Err(net_error.map_or(e, RunError::Net));
         }
     };
@@ -170,6 +149,77 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     tracing::info!(scene = %welcome.scene.name, rate_hz = welcome.scene.control_rate_hz,
         normal = ?welcome.scene.normal, tangential = ?welcome.scene.tangential,
         "session open: rendering the telerobot's scene");
+    let node = first_node(&config, settings, device.as_mut(), &mut safety)?;
+    let haptic = HapticLoop {
+        node,
+        session,
+        device,
+        safety,
+        link: link.clone(),
+        exchange: std::sync::Arc::new(Exchange::default()),
+        shutdown: shutdown.clone(),
+        ticks: config
+            .seconds
+            .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64),
+    };
+    let loops = run_loops(&config, haptic, settings.period_ns)?;
+    report(&config, &welcome, settings.period_ns, &link, network, loops)
+}
+
+/// The network runtime (`operator-net`) and its one task: the QUIC client with reconnect.
+struct Network {
+    task: tokio::task::JoinHandle<Result<(), NetError>>,
+    stop: Shutdown,
+    runtime: tokio::runtime::Runtime,
+}
+
+impl Network {
+    /// Starts the runtime and the client on it; returns the loop's end of the link too.
+    fn start(net: &NetConfig) -> Result<(OperatorLink, Network), RunError> {
+        let runtime =
+            transport::network_runtime("operator-net").map_err(io("the network runtime"))?;
+        let (link, net_io) = net::link(
+            net::DEFAULT_OUTBOX_CAPACITY,
+            net::DEFAULT_MEASUREMENT_CAPACITY,
+        )
+        .map_err(io("the loop's hand-off"))?;
+        let net_stop = Shutdown::new();
+        let task = {
+            let stop = net_stop.clone();
+            runtime.spawn(net::connect_and_run(net.clone(), net_io, async move {
+                stop.wait().await;
+            }))
+        };
+        Ok((
+            link,
+            Network {
+                task,
+                stop: net_stop,
+                runtime,
+            },
+        ))
+    }
+
+    /// Stops the client and waits for it (at most 3 s); the error it ended with, if any.
+    fn stop(&mut self) -> Result<(), NetError> {
+        self.stop.trigger();
+        let task = &mut self.task;
+        self.runtime
+            .block_on(async { tokio::time::timeout(Duration::from_secs(3), task).await })
+            .ok()
+            .and_then(Result::ok)
+            .unwrap_or(Ok(()))
+    }
+}
+
+/// Readies the loop for the session's `settings`: the overrun watchdog on its period, the
+/// device read once, and the first operator node where the device stands.
+fn first_node(
+    config: &RunConfig,
+    settings: OperatorSettings,
+    device: &mut dyn HapticDevice,
+    safety: &mut SafetyLayer,
+) -> Result<Box<OperatorNode>, RunError> {
     // The loop runs at the telerobot's control rate: the overrun rule measures against it.
     let period = Duration::from_nanos(u64::try_from(settings.period_ns).unwrap_or(0));
     safety.set_loop_period(period)?;
@@ -177,38 +227,42 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         "loop-overrun watchdog set to the session's tick period");
     device.update(Duration::ZERO)?;
     let start = safety.command_position(device.measured_cp(), device.clutch());
-    let node = Box::new(OperatorNode::new(settings, config.node, start)?);
+    Ok(Box::new(OperatorNode::new(settings, config.node, start)?))
+}
 
-    let exchange = std::sync::Arc::new(Exchange::default());
+/// What the two loop threads left, and the loop's schedule.
+struct Loops {
+    /// The haptic loop's end (`Err` if it panicked).
+    end: std::thread::Result<LoopEnd>,
+    /// The helper's recording (`Err` if it panicked).
+    recording: std::thread::Result<Recording>,
+    /// Tick 0's time [ns].
+    start_ns: i64,
+    /// The loop's timing.
+    timing: std::sync::Arc<rt::LoopTiming>,
+    /// Wall-clock length of the loop \[s\].
+    wall_seconds: f64,
+}
+
+/// Starts the helper thread, then runs `haptic` on its own thread at `period_ns` until it
+/// stops; then stops the helper.
+fn run_loops(config: &RunConfig, haptic: HapticLoop, period_ns: i64) -> Result<Loops, RunError> {
     let helper_stop = Shutdown::new();
     let helper = helper::spawn(
-        link.clone(),
-        std::sync::Arc::clone(&exchange),
-        session,
+        haptic.link.clone(),
+        std::sync::Arc::clone(&haptic.exchange),
+        haptic.session,
         config.node,
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;
     let periodic_config = PeriodicConfig {
-        period_ns: settings.period_ns,
+        period_ns,
         ..config.periodic
     };
     let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
     let start_ns = periodic.start_ns();
     let timing = periodic.timing();
-    let ticks = config
-        .seconds
-        .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64);
-    let haptic = HapticLoop {
-        node,
-        session,
-        device,
-        safety,
-        link: link.clone(),
-        exchange,
-        shutdown: shutdown.clone(),
-        ticks,
-    };
     let started = Instant::now();
     let haptic = rt::spawn("haptic-loop", config.realtime_priority, move || {
         haptic.run(periodic)
@@ -218,10 +272,28 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     let wall_seconds = started.elapsed().as_secs_f64();
     helper_stop.trigger();
     let recording = helper.join();
+    Ok(Loops {
+        end,
+        recording,
+        start_ns,
+        timing,
+        wall_seconds,
+    })
+}
+
+/// After the loops: the link's counters, the network stopped, then the run's report.
+fn report(
+    config: &RunConfig,
+    welcome: &Welcome,
+    period_ns: i64,
+    link: &OperatorLink,
+    mut network: Network,
+    loops: Loops,
+) -> Result<Outcome, RunError> {
     let stats = link.stats();
     let mut final_link: transport::LinkReport = stats.into();
     let overwritten = link.measurements_overwritten();
-    let net_result = stop_network(net_task);
+    let net_result = network.stop();
     // quinn's counts are read once more when the session's link is dropped (the session's RTT
     // and clock are forgotten then, so they come from before).
     let closed = link.stats();
@@ -230,7 +302,7 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     final_link.quinn_congestion_events = closed.quinn_congestion_events;
     final_link.quinn_lost_packets = closed.quinn_lost_packets;
     final_link.max_gap_ms = closed.max_gap_ns as f64 / 1e6;
-    let (Ok(end), Ok(recording)) = (end, recording) else {
+    let (Ok(end), Ok(recording)) = (loops.end, loops.recording) else {
         return Err(RunError::Io {
             what: "the haptic loop",
             error: std::io::Error::other("a loop thread panicked"),
@@ -247,13 +319,13 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         seed: config.known.as_ref().map_or(0, |k| k.seed),
         set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
         truth: config.known.as_ref().map(|k| k.scene.clone()),
-        start_ns,
-        period_ns: settings.period_ns,
+        start_ns: loops.start_ns,
+        period_ns,
         final_offset_ns: stats.clock_offset_ns,
         link: final_link,
         measurements_overwritten: overwritten,
-        timing: timing.report(),
-        wall_seconds,
+        timing: loops.timing.report(),
+        wall_seconds: loops.wall_seconds,
     };
     let (series, report) = report::build(&facts, &recording, &end);
     Ok(Outcome { report, series })

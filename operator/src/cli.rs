@@ -195,6 +195,32 @@ fn render_into(
     hid: &Result<(Vec<HidEntry>, usize), DeviceError>,
     probe: &SdkProbe,
 ) -> std::fmt::Result {
+    render_hid(s, hid)?;
+    let force_device = render_sdk(s, probe)?;
+    render_backends(s)?;
+    let spacemouse_seen = matches!(hid, Ok((list, _)) if !list.is_empty());
+    writeln!(s)?;
+    if force_device {
+        writeln!(s, "A force-feedback device is available: --device omega")?;
+    } else if spacemouse_seen {
+        writeln!(
+            s,
+            "No force-feedback device found. A SpaceMouse is available as position input only (--device spacemouse)."
+        )?;
+    } else {
+        writeln!(
+            s,
+            "No haptic device found on this machine. Use --device scripted:NAME or replay:FILE.csv (simulated, no force felt)."
+        )?;
+    }
+    Ok(())
+}
+
+/// The HID section: the SpaceMouse-family devices recognised.
+fn render_hid(
+    s: &mut String,
+    hid: &Result<(Vec<HidEntry>, usize), DeviceError>,
+) -> std::fmt::Result {
     writeln!(s, "HID devices (SpaceMouse family, vendors 046d and 256f):")?;
     match hid {
         Err(e) => writeln!(s, "  cannot enumerate HID devices: {e}")?,
@@ -217,6 +243,11 @@ fn render_into(
             }
         }
     }
+    Ok(())
+}
+
+/// The Force Dimension SDK section; whether it found a force-feedback device.
+fn render_sdk(s: &mut String, probe: &SdkProbe) -> Result<bool, std::fmt::Error> {
     writeln!(s, "\nForce Dimension SDK:")?;
     let mut force_device = false;
     match &probe.library {
@@ -237,6 +268,11 @@ fn render_into(
             }
         }
     }
+    Ok(force_device)
+}
+
+/// The backends table: what each `--device` offers.
+fn render_backends(s: &mut String) -> std::fmt::Result {
     writeln!(s, "\nBackends:")?;
     writeln!(
         s,
@@ -287,21 +323,6 @@ fn render_into(
             s,
             "  {name:<15} {force:<14} {f:>9} {k:>13} {b:>13} {:<20} {note}",
             ws.describe()
-        )?;
-    }
-    let spacemouse_seen = matches!(hid, Ok((list, _)) if !list.is_empty());
-    writeln!(s)?;
-    if force_device {
-        writeln!(s, "A force-feedback device is available: --device omega")?;
-    } else if spacemouse_seen {
-        writeln!(
-            s,
-            "No force-feedback device found. A SpaceMouse is available as position input only (--device spacemouse)."
-        )?;
-    } else {
-        writeln!(
-            s,
-            "No haptic device found on this machine. Use --device scripted:NAME or replay:FILE.csv (simulated, no force felt)."
         )?;
     }
     Ok(())

@@ -3,16 +3,15 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use std::time::Duration;
 
-use common::*;
 use operator::net::NetError;
 use protocol::Header;
 use protocol::operator_to_telerobot as o2t;
 use protocol::telerobot_to_operator::Datagram;
 use protocol::telerobot_to_operator::{self as t2o, CloudFrame, Measurement, Welcome};
+use testkit::net::*;
+use testkit::*;
 use transport::framing;
 use transport::{Identity, OperatorPins};
 
@@ -21,11 +20,15 @@ const WAIT: Duration = Duration::from_secs(5);
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_session_carries_commands_state_clouds_and_clock_both_ways() {
     let certs = Certs::new();
-    let tr = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
-    let op = start_operator(tr.addr, &certs.operator, &certs.telerobot, "alice");
+    let tr = TelerobotServer::start(
+        &certs.telerobot,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
+    let op = OperatorClient::start(tr.addr, &certs.operator, &certs.telerobot, "alice");
     eventually(WAIT, || op.link.status().connected().then_some(())).await;
     let welcome = op.link.status().welcome().unwrap();
-    assert_eq!(welcome.scene, scene());
+    assert_eq!(welcome.scene, wall_summary());
     assert_eq!(tr.link.status().operator().as_deref(), Some("alice"));
 
     // Operator → telerobot: a command reaches the loop's slot.
@@ -93,12 +96,12 @@ async fn a_telerobot_with_another_certificate_is_refused_naming_the_pinned_file(
         telerobot: Identity::generate(&["telerobot"]).unwrap(),
         operator: certs.operator.clone(),
     };
-    let tr = start_telerobot(
-        &impostor,
+    let tr = TelerobotServer::start(
+        &impostor.telerobot,
         "127.0.0.1:0".parse().unwrap(),
         &[&certs.operator],
     );
-    let op = start_operator(tr.addr, &certs.operator, &certs.telerobot, "alice");
+    let op = OperatorClient::start(tr.addr, &certs.operator, &certs.telerobot, "alice");
     let error = op.task.await.unwrap().unwrap_err();
     assert!(matches!(error, NetError::PinMismatch { .. }), "{error:?}");
     assert_eq!(
@@ -111,8 +114,12 @@ async fn a_telerobot_with_another_certificate_is_refused_naming_the_pinned_file(
 async fn an_operator_the_telerobot_does_not_trust_is_told_so() {
     let certs = Certs::new();
     let stranger = Identity::generate(&["stranger"]).unwrap();
-    let tr = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
-    let op = start_operator(tr.addr, &stranger, &certs.telerobot, "mallory");
+    let tr = TelerobotServer::start(
+        &certs.telerobot,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
+    let op = OperatorClient::start(tr.addr, &stranger, &certs.telerobot, "mallory");
     let error = op.task.await.unwrap().unwrap_err();
     assert!(matches!(error, NetError::NotTrusted), "{error:?}");
     assert_eq!(
@@ -125,14 +132,14 @@ async fn an_operator_the_telerobot_does_not_trust_is_told_so() {
 async fn a_second_operator_gets_busy_and_the_first_one_stays_in_control() {
     let certs = Certs::new();
     let bob = Identity::generate(&["bob"]).unwrap();
-    let tr = start_telerobot(
-        &certs,
+    let tr = TelerobotServer::start(
+        &certs.telerobot,
         "127.0.0.1:0".parse().unwrap(),
         &[&certs.operator, &bob],
     );
-    let alice = start_operator(tr.addr, &certs.operator, &certs.telerobot, "alice");
+    let alice = OperatorClient::start(tr.addr, &certs.operator, &certs.telerobot, "alice");
     eventually(WAIT, || alice.link.status().connected().then_some(())).await;
-    let second = start_operator(tr.addr, &bob, &certs.telerobot, "bob");
+    let second = OperatorClient::start(tr.addr, &bob, &certs.telerobot, "bob");
     let error = second.task.await.unwrap().unwrap_err();
     assert_eq!(
         error.to_string(),
@@ -146,9 +153,13 @@ async fn a_second_operator_gets_busy_and_the_first_one_stays_in_control() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_operator_reconnects_when_the_telerobot_comes_back() {
     let certs = Certs::new();
-    let tr = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
+    let tr = TelerobotServer::start(
+        &certs.telerobot,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
     let addr = tr.addr;
-    let op = start_operator(addr, &certs.operator, &certs.telerobot, "alice");
+    let op = OperatorClient::start(addr, &certs.operator, &certs.telerobot, "alice");
     eventually(WAIT, || op.link.status().connected().then_some(())).await;
     tr.stop().await;
     eventually(WAIT, || (!op.link.status().connected()).then_some(())).await;
@@ -160,7 +171,7 @@ async fn the_operator_reconnects_when_the_telerobot_comes_back() {
             .contains("shutting down")
     );
 
-    let tr = restart_telerobot(&certs, addr, &[&certs.operator]).await;
+    let tr = TelerobotServer::restart(&certs.telerobot, addr, &[&certs.operator]).await;
     eventually(Duration::from_secs(10), || {
         (op.link.status().session() == 2 && op.link.status().connected()).then_some(())
     })
@@ -175,9 +186,10 @@ async fn garbage_datagrams_from_the_telerobot_are_counted_and_ignored() {
     let certs = Certs::new();
     // A hand-made telerobot: welcomes, then sends garbage around two valid datagrams.
     let pins = OperatorPins::new(vec![certs.operator.cert.clone()]);
-    let config = transport::endpoint::server_config(&certs.telerobot, pins, &tuning()).unwrap();
+    let config =
+        transport::endpoint::server_config(&certs.telerobot, pins, &tuning(400.0)).unwrap();
     let endpoint = quinn::Endpoint::server(config, "127.0.0.1:0".parse().unwrap()).unwrap();
-    let op = start_operator(
+    let op = OperatorClient::start(
         endpoint.local_addr().unwrap(),
         &certs.operator,
         &certs.telerobot,
@@ -189,7 +201,7 @@ async fn garbage_datagrams_from_the_telerobot_are_counted_and_ignored() {
     framing::read_frame(&mut recv, &mut hello).await.unwrap();
     let welcome = t2o::Message::Welcome(Welcome {
         version: protocol::PROTOCOL_VERSION,
-        scene: scene(),
+        scene: wall_summary(),
     });
     framing::write_frame(&mut send, &t2o::encode(&welcome))
         .await

@@ -6,15 +6,14 @@
 
 #![allow(clippy::unwrap_used)]
 
-mod common;
-
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use common::*;
 use netem::{Direction, LinkConfig, Loss, ShimConfig};
 use rt::monotonic_ns;
+use testkit::net::*;
+use testkit::*;
 
 const DELAY_NS: i64 = 400 * MS;
 
@@ -28,21 +27,25 @@ async fn serial() -> tokio::sync::MutexGuard<'static, ()> {
 /// A telerobot behind a 400 ms shim, with the stand-in loop echoing commands.
 struct Rig {
     shim: netem::ShimHandle,
-    telerobot: Telerobot,
-    operator: Operator,
+    telerobot: TelerobotServer,
+    operator: OperatorClient,
     delays: Arc<Mutex<Vec<i64>>>,
     _echo: Poller,
 }
 
 async fn rig() -> Rig {
     let certs = Certs::new();
-    let telerobot = start_telerobot(&certs, "127.0.0.1:0".parse().unwrap(), &[&certs.operator]);
+    let telerobot = TelerobotServer::start(
+        &certs.telerobot,
+        "127.0.0.1:0".parse().unwrap(),
+        &[&certs.operator],
+    );
     let mut config = ShimConfig::new("127.0.0.1:0".parse().unwrap(), telerobot.addr);
     config.up = LinkConfig::delay(DELAY_NS as u64);
     config.down = LinkConfig::delay(DELAY_NS as u64);
     config.spin_window_ns = 50_000;
     let shim = netem::shim::start(config).unwrap();
-    let operator = start_operator(
+    let operator = OperatorClient::start(
         shim.local_addr(),
         &certs.operator,
         &certs.telerobot,

@@ -102,29 +102,29 @@ fn a_scripted_lossy_link_gives_exact_rtt_and_counts() {
 #[test]
 fn admission_keeps_the_newest_of_each_kind_and_every_first_measurement() {
     use protocol::Header;
-    use protocol::telerobot_to_operator::{Admission, ContactState, Message};
+    use protocol::telerobot_to_operator::{Admission, Message};
     let header = |seq| Header {
         seq,
         ..Header::unstamped(0)
     };
+    let sample = |kind: &str| {
+        common::telerobot_samples()
+            .into_iter()
+            .find(|m| m.kind() == kind)
+            .expect("the samples hold every kind")
+    };
     let contact = |seq| {
+        let Message::Contact(c) = sample("Contact") else {
+            unreachable!()
+        };
         Message::Contact(protocol::telerobot_to_operator::Contact {
             header: header(seq),
-            command_sample_time_ns: 0,
-            state: ContactState::Free,
-            proxy_position_m: [0.0; 3],
-            normal: None,
-            frame: None,
-            surface_point_m: None,
-            penetration_m: None,
+            ..c
         })
     };
     let measurement = |seq| {
-        let Some(Message::Measurement(m)) = common::telerobot_samples()
-            .into_iter()
-            .find(|m| matches!(m, Message::Measurement(_)))
-        else {
-            unreachable!("the samples hold a measurement")
+        let Message::Measurement(m) = sample("Measurement") else {
+            unreachable!()
         };
         Message::Measurement(protocol::telerobot_to_operator::Measurement {
             header: header(seq),

@@ -77,10 +77,33 @@ impl SimConfig {
 
     /// Checks every field; the error names the field, the value and the allowed range.
     pub fn validate(&self) -> Result<(), SimError> {
+        if let Some((field, value, _, expected)) = self
+            .checks()
+            .into_iter()
+            .find(|(_, v, ok, _)| !(v.is_finite() && *ok))
+        {
+            return Err(SimError::Field {
+                field,
+                value,
+                expected,
+            });
+        }
+        if let Some((field, value, expected)) = self.noise.invalid_field() {
+            return Err(SimError::Field {
+                field,
+                value,
+                expected,
+            });
+        }
+        Ok(())
+    }
+
+    /// Each field with its value, whether it is in range (besides being finite), and the range.
+    fn checks(&self) -> [(&'static str, f64, bool, &'static str); 10] {
         let o = &self.object;
         let h = self.sample_period_s;
         let h_sub = h / f64::from(self.substeps.max(1));
-        let checks = [
+        [
             (
                 "object.mass_kg",
                 o.mass_kg,
@@ -136,25 +159,7 @@ impl SimConfig {
                 self.substeps >= 1 && h_sub <= 1e-4 * (1.0 + 1e-12),
                 "≥ 1 and sample_period_s/substeps ≤ 1e-4 s (≥ 10 kHz)",
             ),
-        ];
-        if let Some((field, value, _, expected)) = checks
-            .into_iter()
-            .find(|(_, v, ok, _)| !(v.is_finite() && *ok))
-        {
-            return Err(SimError::Field {
-                field,
-                value,
-                expected,
-            });
-        }
-        if let Some((field, value, expected)) = self.noise.invalid_field() {
-            return Err(SimError::Field {
-                field,
-                value,
-                expected,
-            });
-        }
-        Ok(())
+        ]
     }
 }
 

@@ -51,6 +51,74 @@ enum Tangential {
     },
 }
 
+/// One tangential axis's tick: what [`World::step`] gathers per axis.
+struct AxisStep {
+    measured: Measurement,
+    truth: Measurement,
+    /// The object's displacement along the axis \[m\].
+    offset_m: f64,
+    /// (contact deflection \[m\], object velocity \[m/s\]).
+    state: (f64, f64),
+}
+
+impl Tangential {
+    /// The axis moved to `x` \[m\] at `v` \[m/s\] in the surface frame for one tick.
+    fn step(&mut self, x: f64, v: f64, in_contact: bool) -> AxisStep {
+        match self {
+            Tangential::Sliding(sim) => {
+                let s = sim.step(x, v, in_contact);
+                // F_op = k2 δ + b2 (ẋ − ẋ_m)  ⇒  δ.
+                let o = sim.config().object;
+                let delta = if in_contact && o.k_contact_n_per_m > 0.0 {
+                    (force_on_tool(s.truth.force_n)
+                        - o.b_contact_ns_per_m * (v - s.mass_velocity_m_per_s))
+                        / o.k_contact_n_per_m
+                } else {
+                    0.0
+                };
+                AxisStep {
+                    measured: s.measured,
+                    truth: s.truth,
+                    offset_m: s.mass_position_m,
+                    state: (delta, s.mass_velocity_m_per_s),
+                }
+            }
+            Tangential::Anchored {
+                k,
+                b,
+                rest_m,
+                last,
+                in_contact: was,
+                sensors,
+            } => {
+                if in_contact && !*was {
+                    // Onset: the element is anchored where contact began (its damping force
+                    // may jump, as a Kelvin–Voigt contact's does).
+                    *rest_m = x;
+                }
+                *was = in_contact;
+                *last = [x, v];
+                let f = if in_contact {
+                    force_on_tool(*k * (x - *rest_m) + *b * v)
+                } else {
+                    0.0
+                };
+                let truth = Measurement {
+                    position_m: x,
+                    velocity_m_per_s: v,
+                    force_n: f,
+                };
+                AxisStep {
+                    measured: sensors.measure(truth),
+                    truth,
+                    offset_m: 0.0,
+                    state: (if in_contact { x - *rest_m } else { 0.0 }, 0.0),
+                }
+            }
+        }
+    }
+}
+
 /// The simulated world.
 pub struct World {
     origin: [f64; 3],
@@ -134,58 +202,12 @@ impl World {
             ..WorldSample::default()
         };
         for (i, axis) in self.tangential.iter_mut().enumerate() {
-            let (m, t, offset, state) = match axis {
-                Tangential::Sliding(sim) => {
-                    let s = sim.step(x[i], v[i], in_contact);
-                    // F_op = k2 δ + b2 (ẋ − ẋ_m)  ⇒  δ.
-                    let o = sim.config().object;
-                    let delta = if in_contact && o.k_contact_n_per_m > 0.0 {
-                        (force_on_tool(s.truth.force_n)
-                            - o.b_contact_ns_per_m * (v[i] - s.mass_velocity_m_per_s))
-                            / o.k_contact_n_per_m
-                    } else {
-                        0.0
-                    };
-                    (
-                        s.measured,
-                        s.truth,
-                        s.mass_position_m,
-                        (delta, s.mass_velocity_m_per_s),
-                    )
-                }
-                Tangential::Anchored {
-                    k,
-                    b,
-                    rest_m,
-                    last,
-                    in_contact: was,
-                    sensors,
-                } => {
-                    if in_contact && !*was {
-                        // Onset: the element is anchored where contact began (its damping force
-                        // may jump, as a Kelvin–Voigt contact's does).
-                        *rest_m = x[i];
-                    }
-                    *was = in_contact;
-                    *last = [x[i], v[i]];
-                    let f = if in_contact {
-                        force_on_tool(*k * (x[i] - *rest_m) + *b * v[i])
-                    } else {
-                        0.0
-                    };
-                    let truth = Measurement {
-                        position_m: x[i],
-                        velocity_m_per_s: v[i],
-                        force_n: f,
-                    };
-                    (
-                        sensors.measure(truth),
-                        truth,
-                        0.0,
-                        (if in_contact { x[i] - *rest_m } else { 0.0 }, 0.0),
-                    )
-                }
-            };
+            let AxisStep {
+                measured: m,
+                truth: t,
+                offset_m: offset,
+                state,
+            } = axis.step(x[i], v[i], in_contact);
             measured_local[i] = m;
             truth_local[i] = t;
             out.object_offset_m[i] = offset;

@@ -28,8 +28,10 @@ use transport::Mailbox;
 use crate::net::TelerobotLink;
 
 pub mod file;
+mod start;
 
 pub use file::{CloudFileError, FileCloud, FileCloudInfo};
+pub(crate) use start::start;
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);

@@ -25,9 +25,7 @@ use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
-use sim::camera::Camera;
-use sim::scene::{CloudKind, Scene};
-use sim::world::World;
+use sim::scene::Scene;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
@@ -193,27 +191,87 @@ pub struct SnapshotReport {
 
 /// A running telerobot daemon.
 pub struct Telerobot {
-    runtime: tokio::runtime::Runtime,
-    server: tokio::task::JoinHandle<()>,
-    net_stop: Shutdown,
+    network: Network,
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
     housekeeping: Option<JoinHandle<Vec<i64>>>,
     shared: Arc<Housekeeping>,
-    addr: SocketAddr,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
-    pins: Arc<transport::OperatorPins>,
     robot: Option<ros2::BridgeMonitor>,
     ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
+}
+
+/// The network side: its runtime and the QUIC server serving the loop's hand-off.
+struct Network {
+    runtime: tokio::runtime::Runtime,
+    server: tokio::task::JoinHandle<()>,
+    net_stop: Shutdown,
+    addr: SocketAddr,
+    pins: Arc<transport::OperatorPins>,
+}
+
+impl Network {
+    /// Binds the server on its own runtime and starts serving `net_io`.
+    fn start(config: &RunConfig, net_io: net::NetIo) -> Result<Network, DaemonError> {
+        let runtime =
+            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
+        let server = {
+            let _entered = runtime.enter();
+            net::bind(config.net_config())?
+        };
+        let addr = server
+            .local_addr()
+            .map_err(io("the server's local address"))?;
+        let pins = server.pins();
+        let net_stop = Shutdown::new();
+        let server = {
+            let stop = net_stop.clone();
+            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
+        };
+        for (path, _) in &config.trusted_operators {
+            tracing::info!(file = %path.display(), "trusting operator certificate");
+        }
+        Ok(Network {
+            runtime,
+            server,
+            net_stop,
+            addr,
+            pins,
+        })
+    }
 }
 
 /// What the housekeeping thread shares.
 struct Housekeeping {
     snapshot: Mutex<LoopSnapshot>,
+}
+
+impl Housekeeping {
+    /// Before the loop's first snapshot: the tool where it starts.
+    fn new(tool_m: [f64; 3]) -> Housekeeping {
+        Housekeeping {
+            snapshot: Mutex::new(LoopSnapshot {
+                tool_m,
+                ..LoopSnapshot::default()
+            }),
+        }
+    }
+}
+
+/// The start log: where the daemon listens, what it drives and the command limits.
+fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, robot: &str) {
+    let l = &config.limits;
+    tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+        period_us = periodic.period_ns / 1000, spin_us = periodic.spin_ns / 1000,
+        "telerobot running ({robot})");
+    tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
+        max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
+        state_timeout_ms = l.state_timeout_ns as f64 * 1e-6,
+        "command limits (every limit that acts is counted and logged once per episode)");
 }
 
 impl Telerobot {
@@ -236,37 +294,13 @@ impl Telerobot {
             ..config.periodic
         };
         periodic_config.validate()?;
-        let runtime =
-            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
-        let server = {
-            let _entered = runtime.enter();
-            net::bind(config.net_config())?
-        };
-        let addr = server
-            .local_addr()
-            .map_err(io("the server's local address"))?;
-        let pins = server.pins();
-        let net_stop = Shutdown::new();
-        let server = {
-            let stop = net_stop.clone();
-            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
-        };
-        for (path, _) in &config.trusted_operators {
-            tracing::info!(file = %path.display(), "trusting operator certificate");
-        }
-
+        let network = Network::start(&config, net_io)?;
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let (source, camera_counters) = camera_source(&config, built.graph.as_ref())?;
-        let camera = match source {
-            None => None,
-            Some(source) => Some(
-                camera::spawn(source, Arc::clone(&feed), link.clone(), stop.clone())
-                    .map_err(io("the camera thread"))?,
-            ),
-        };
+        let (camera, camera_counters) =
+            camera::start(&config, built.graph.as_ref(), &feed, &link, &stop)?;
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
@@ -290,53 +324,31 @@ impl Telerobot {
             control.run(periodic)
         })
         .map_err(io("the loop thread"))?;
-        let shared = Arc::new(Housekeeping {
-            snapshot: Mutex::new(LoopSnapshot {
-                tool_m: start,
-                ..LoopSnapshot::default()
-            }),
-        });
-        let housekeeping = {
-            let keeper = Keeper {
-                settings,
-                spares,
-                snapshots,
-                shared: Arc::clone(&shared),
-                link: link.clone(),
-                timing: Arc::clone(&timing),
-                spare_at: None,
-                command_latency,
-                latencies: Vec::new(),
-            };
-            let stop = stop.clone();
-            std::thread::Builder::new()
-                .name("housekeeping".to_owned())
-                .spawn(move || keeper.run(&stop))
-                .map_err(io("the housekeeping thread"))?
+        let shared = Arc::new(Housekeeping::new(start));
+        let keeper = Keeper {
+            settings,
+            spares,
+            snapshots,
+            shared: Arc::clone(&shared),
+            link: link.clone(),
+            timing: Arc::clone(&timing),
+            spare_at: None,
+            command_latency,
+            latencies: Vec::new(),
         };
-        let l = &config.limits;
-        tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
-            period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
-            "telerobot running ({})", built.description);
-        tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
-            max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
-            state_timeout_ms = l.state_timeout_ns as f64 * 1e-6,
-            "command limits (every limit that acts is counted and logged once per episode)");
+        let housekeeping = keeper.spawn(&stop)?;
+        log_start(&config, network.addr, &periodic_config, &built.description);
         Ok(Telerobot {
-            runtime,
-            server,
-            net_stop,
+            network,
             stop,
             control: Some(control),
             camera,
             housekeeping: Some(housekeeping),
             shared,
-            addr,
             link,
             feed,
             timing,
             scene: config.scene,
-            pins,
             robot: built.monitor,
             ros2_camera: camera_counters,
         })
@@ -344,7 +356,7 @@ impl Telerobot {
 
     /// The address the server listens on.
     pub fn local_addr(&self) -> SocketAddr {
-        self.addr
+        self.network.addr
     }
 
     /// The loop as of its last snapshot (at most ~30 ms old).
@@ -363,7 +375,7 @@ impl Telerobot {
 
     /// Operator certificates the TLS handshake refused since start.
     pub fn untrusted_refusals(&self) -> u64 {
-        self.pins.rejections()
+        self.network.pins.rejections()
     }
 
     /// Stops everything (operators are told the telerobot shuts down) and returns the summary.
@@ -378,9 +390,10 @@ impl Telerobot {
             .take()
             .and_then(|h| h.join().ok())
             .unwrap_or_default();
-        self.net_stop.trigger();
-        let server = &mut self.server;
+        self.network.net_stop.trigger();
+        let server = &mut self.network.server;
         let _ = self
+            .network
             .runtime
             .block_on(async { tokio::time::timeout(Duration::from_secs(3), server).await });
         let last = end.as_ref().map_or_else(|| self.snapshot(), |e| e.last);
@@ -436,7 +449,7 @@ impl Drop for Telerobot {
     /// A daemon dropped without [`Telerobot::stop`] still stops its threads (without waiting).
     fn drop(&mut self) {
         self.stop.trigger();
-        self.net_stop.trigger();
+        self.network.net_stop.trigger();
     }
 }
 
@@ -462,6 +475,15 @@ struct Keeper {
 }
 
 impl Keeper {
+    /// Starts the housekeeping thread.
+    fn spawn(self, stop: &Shutdown) -> Result<JoinHandle<Vec<i64>>, DaemonError> {
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name("housekeeping".to_owned())
+            .spawn(move || self.run(&stop))
+            .map_err(io("the housekeeping thread"))
+    }
+
     /// Runs until `stop`; returns the command latencies \[ns\].
     fn run(mut self, stop: &Shutdown) -> Vec<i64> {
         let mut last = LoopSnapshot::default();
@@ -560,78 +582,4 @@ fn log_guard(before: &GuardStats, now: &GuardStats) {
     if before.no_state_ticks == 0 && now.no_state_ticks > 0 && now.ticks == now.no_state_ticks {
         tracing::info!("waiting for the robot's first state: nothing is commanded until it comes");
     }
-}
-
-/// The camera thread's source for the scene's `[cloud]`; `None`: no cloud. A cloud file is read
-/// and a camera topic subscribed here, so that a bad one is refused at start. A ROS 2 camera
-/// joins the robot's graph if there is one, else the domain of `ROS_DOMAIN_ID`.
-fn camera_source(
-    config: &RunConfig,
-    graph: Option<&ros2::Graph>,
-) -> Result<
-    (
-        Option<camera::Source>,
-        Option<Arc<ros2::camera::CameraCounters>>,
-    ),
-    DaemonError,
-> {
-    let scene = &config.scene;
-    let geometry = World::new(scene, config.start_m, config.seed)?;
-    let source = match scene.cloud.source {
-        CloudKind::None => None,
-        CloudKind::Plane => Some(camera::Source::Simulated(
-            Box::new(Camera::new(scene, config.seed)),
-            Box::new(geometry),
-        )),
-        CloudKind::File => {
-            let file = camera::FileCloud::load(scene, &geometry)?;
-            let i = file.info();
-            tracing::info!(file = %i.path.display(), read = i.read,
-                skipped_non_finite = i.skipped_non_finite, kept = i.kept, voxel_m = ?i.voxel_m,
-                budget_acted = i.budget_acted, moving = scene.cloud.moving, "cloud from a file");
-            Some(camera::Source::File(Box::new(file)))
-        }
-        CloudKind::Ros2 => {
-            let camera = ros2_camera(config, graph)?;
-            let counters = camera.counters();
-            return Ok((Some(camera::Source::Ros2(Box::new(camera))), Some(counters)));
-        }
-    };
-    Ok((source, None))
-}
-
-/// The scene's ROS 2 camera: its topic (the scene's, else the robot's `camera_points`, else
-/// `/mmt/camera/points`), pose, voxel grid and budget.
-fn ros2_camera(
-    config: &RunConfig,
-    graph: Option<&ros2::Graph>,
-) -> Result<ros2::CameraSource, DaemonError> {
-    let c = &config.scene.cloud;
-    let topic = match (&c.topic, &config.robot) {
-        (Some(t), _) => ros2::TopicName::parse("cloud.topic", t)?,
-        (None, RobotConfig::Ros2 { bridge, .. }) => bridge.topics.camera_points.clone(),
-        (None, RobotConfig::Sim) => ros2::topics::RobotTopics::default().camera_points,
-    };
-    let graph = match graph {
-        Some(g) => g.clone(),
-        None => ros2::Graph::join(&ros2::GraphConfig::from_env(None)?)?,
-    };
-    let camera = ros2::CameraSource::start(
-        &graph,
-        ros2::CameraConfig {
-            topic: topic.clone(),
-            qos: ros2::Qos::STREAM,
-            pipeline: ros2::pointcloud2::PipelineConfig {
-                // Validated with the scene.
-                camera_to_base: c.pose.pose().unwrap_or_default(),
-                voxel_m: c.voxel_m,
-                max_points: c.max_points,
-            },
-            stale_ns: (c.stale_ms * 1e6).round() as i64,
-        },
-    )?;
-    tracing::info!(%topic, domain = graph.config().domain_id, voxel_m = ?c.voxel_m,
-        max_points = c.max_points, stale_ms = c.stale_ms,
-        "cloud from a ROS 2 camera (sensor_msgs/PointCloud2, best-effort)");
-    Ok(camera)
 }

@@ -3,153 +3,32 @@
 
 #![allow(clippy::unwrap_used)]
 
-use std::net::SocketAddr;
-use std::sync::Arc;
 use std::time::Duration;
 
-use protocol::operator_to_telerobot::{self as o2t, Command, Hello, Ping};
-use protocol::telerobot_to_operator::Datagram;
-use protocol::telerobot_to_operator::{
-    self as t2o, Contact, ContactState, ModelStructure, Refusal, SceneSummary,
-};
+use protocol::operator_to_telerobot::{self as o2t, Command, Ping};
+use protocol::telerobot_to_operator::{self as t2o, Contact, ContactState, Datagram, Refusal};
 use protocol::{Header, PROTOCOL_VERSION};
-use rt::monotonic_ns;
-use telerobot::net::{self, NetConfig, TelerobotLink};
-use tokio::sync::oneshot;
+use testkit::net::TelerobotServer;
+use testkit::peers::RawOperator;
+use testkit::{eventually, identity, wall_summary};
 use transport::endpoint::{CertificateFailure, certificate_failure};
-use transport::framing;
-use transport::{CloseCode, Identity, LinkTuning, SERVER_NAME, TelerobotPin};
+use transport::{CloseCode, Identity, framing};
 
-fn scene() -> SceneSummary {
-    SceneSummary {
-        name: "wall".into(),
-        normal: ModelStructure::KelvinVoigt,
-        tangential: ModelStructure::Free,
-        control_rate_hz: 1000.0,
-        cloud_rate_hz: None,
-        left_out: vec![],
-        proxy_radii_m: [0.004, 0.006, 0.03],
-    }
-}
-
-/// A running server; stops when dropped.
-struct Telerobot {
-    addr: SocketAddr,
-    link: TelerobotLink,
-    identity: Identity,
-    _stop: oneshot::Sender<()>,
-    pins: Arc<transport::OperatorPins>,
-}
-
-fn start(trusted: &[&Identity]) -> Telerobot {
-    let identity = Identity::generate(&["telerobot"]).unwrap();
-    let mut config = NetConfig::new(
+/// A telerobot server presenting a fresh certificate, trusting `trusted`.
+fn start(trusted: &[&Identity]) -> TelerobotServer {
+    TelerobotServer::start(
+        &identity("telerobot"),
         "127.0.0.1:0".parse().unwrap(),
-        identity.clone(),
-        trusted.iter().map(|i| i.cert.clone()).collect(),
-        scene(),
-    );
-    config.refusal_linger = Duration::from_millis(500);
-    let (link, io) = net::link(net::DEFAULT_OUTBOX_CAPACITY).unwrap();
-    let server = net::bind(config).unwrap();
-    let (addr, pins) = (server.local_addr().unwrap(), server.pins());
-    let (stop, stopped) = oneshot::channel::<()>();
-    tokio::spawn(server.serve(io, async {
-        let _ = stopped.await;
-    }));
-    Telerobot {
-        addr,
-        link,
-        identity,
-        _stop: stop,
-        pins,
-    }
+        trusted,
+    )
 }
 
-/// A hand-made operator connection with its control stream.
-struct RawOperator {
-    conn: quinn::Connection,
-    send: quinn::SendStream,
-    recv: quinn::RecvStream,
-    _endpoint: quinn::Endpoint,
-}
-
+/// A hand-made operator presenting `me` to `telerobot`.
 async fn connect(
-    telerobot: &Telerobot,
+    telerobot: &TelerobotServer,
     me: &Identity,
 ) -> Result<RawOperator, quinn::ConnectionError> {
-    let pin = TelerobotPin::new(telerobot.identity.cert.clone(), "telerobot.crt");
-    let config = transport::endpoint::client_config(me, pin, &LinkTuning::default(), 4).unwrap();
-    let mut endpoint = quinn::Endpoint::client("127.0.0.1:0".parse().unwrap()).unwrap();
-    endpoint.set_default_client_config(config);
-    let conn = endpoint
-        .connect(telerobot.addr, SERVER_NAME)
-        .unwrap()
-        .await?;
-    let (send, recv) = conn.open_bi().await?;
-    Ok(RawOperator {
-        conn,
-        send,
-        recv,
-        _endpoint: endpoint,
-    })
-}
-
-impl RawOperator {
-    /// Sends a Hello of `version` and returns the telerobot's answer.
-    async fn hello(&mut self, name: &str, version: u16) -> t2o::Message {
-        let hello = o2t::Message::Hello(Hello {
-            version,
-            operator_name: name.into(),
-            want_clouds: false,
-        });
-        framing::write_frame(&mut self.send, &o2t::encode(&hello))
-            .await
-            .unwrap();
-        let mut buf = Vec::new();
-        framing::read_frame(&mut self.recv, &mut buf).await.unwrap();
-        t2o::decode(&buf).unwrap()
-    }
-
-    fn datagram(&self, message: &o2t::Message) {
-        self.conn
-            .send_datagram(o2t::encode(message).into())
-            .unwrap();
-    }
-
-    fn command(&self, seq: u64, x: f64) {
-        self.datagram(&o2t::Message::Command(Command {
-            header: Header {
-                seq,
-                sample_time_ns: monotonic_ns(),
-                send_time_ns: monotonic_ns(),
-                ..Header::default()
-            },
-            position_m: [x, 0.0, 0.0],
-            velocity_m_per_s: [0.0; 3],
-        }));
-    }
-
-    /// Waits for the next datagram that decodes.
-    async fn next_datagram(&self) -> t2o::Message {
-        loop {
-            let bytes = self.conn.read_datagram().await.unwrap();
-            if let Ok(m) = t2o::decode(&bytes) {
-                return m;
-            }
-        }
-    }
-}
-
-/// Polls `f` every 5 ms until it gives a value (panics after 5 s).
-async fn eventually<T>(mut f: impl FnMut() -> Option<T>) -> T {
-    for _ in 0..1000 {
-        if let Some(v) = f() {
-            return v;
-        }
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-    panic!("condition not met within 5 s")
+    RawOperator::try_connect(telerobot.addr, me, &telerobot.identity).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -162,13 +41,13 @@ async fn a_trusted_operator_is_welcomed_and_datagrams_flow_both_ways() {
     };
     assert_eq!(
         (welcome.version, welcome.scene),
-        (PROTOCOL_VERSION, scene())
+        (PROTOCOL_VERSION, wall_summary())
     );
     assert!(tr.link.status().connected());
     assert_eq!(tr.link.status().operator().as_deref(), Some("alice"));
 
     raw.command(1, 0.25);
-    let got = eventually(|| tr.link.next_command()).await;
+    let got = eventually(Duration::from_secs(5), || tr.link.next_command()).await;
     assert_eq!(got.message.position_m, [0.25, 0.0, 0.0]);
     assert_eq!(got.session, 1);
     assert!(got.received_ns >= got.message.header.sample_time_ns);
@@ -208,7 +87,10 @@ async fn a_trusted_operator_is_welcomed_and_datagrams_flow_both_ways() {
         .unwrap();
     let closed = raw.conn.closed().await;
     assert!(closed.to_string().contains("Bye"), "{closed}");
-    eventually(|| (!tr.link.status().connected()).then_some(())).await;
+    eventually(Duration::from_secs(5), || {
+        (!tr.link.status().connected()).then_some(())
+    })
+    .await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -263,7 +145,10 @@ async fn a_second_operator_is_refused_while_one_is_in_control_and_accepted_after
     assert_eq!(tr.link.status().operator().as_deref(), Some("alice"));
 
     first.conn.close(0u32.into(), b"leaving");
-    eventually(|| (!tr.link.status().connected()).then_some(())).await;
+    eventually(Duration::from_secs(5), || {
+        (!tr.link.status().connected()).then_some(())
+    })
+    .await;
     let mut third = connect(&tr, &b).await.unwrap();
     assert!(matches!(
         third.hello("bob", PROTOCOL_VERSION).await,
@@ -303,7 +188,7 @@ async fn the_operator_in_control_connecting_again_replaces_its_old_connection() 
     assert_eq!(tr.link.status().session(), 2);
     assert_eq!(tr.link.status().refused_busy(), 0);
     restarted.command(1, 0.25);
-    let got = eventually(|| tr.link.next_command()).await;
+    let got = eventually(Duration::from_secs(5), || tr.link.next_command()).await;
     assert_eq!(got.message.position_m[0], 0.25);
     // Another operator is still refused while the restarted one is in control.
     let mut other = connect(&tr, &b).await.unwrap();
@@ -353,7 +238,7 @@ async fn garbage_datagrams_are_counted_and_ignored() {
     let mut raw = connect(&tr, &op).await.unwrap();
     raw.hello("alice", PROTOCOL_VERSION).await;
     raw.command(1, 1.0);
-    eventually(|| tr.link.next_command()).await;
+    eventually(Duration::from_secs(5), || tr.link.next_command()).await;
 
     let mut garbage: Vec<Vec<u8>> = Vec::new();
     // Pseudo-random bytes (fixed LCG), the version prefix then random, a truncated command,
@@ -393,9 +278,12 @@ async fn garbage_datagrams_are_counted_and_ignored() {
         raw.conn.send_datagram(g.into()).unwrap();
     }
     raw.command(3, 3.0);
-    let got = eventually(|| tr.link.next_command()).await;
+    let got = eventually(Duration::from_secs(5), || tr.link.next_command()).await;
     assert_eq!(got.message.position_m[0], 3.0, "the session goes on");
-    let stats = eventually(|| Some(tr.link.stats()).filter(|s| s.garbage == sent)).await;
+    let stats = eventually(Duration::from_secs(5), || {
+        Some(tr.link.stats()).filter(|s| s.garbage == sent)
+    })
+    .await;
     assert_eq!((stats.accepted, stats.lost), (2, 1), "{stats:?}");
     assert!(tr.link.status().connected());
 }

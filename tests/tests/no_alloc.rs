@@ -11,7 +11,8 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Duration;
 
-use tests::*;
+use testkit::daemons::*;
+use testkit::*;
 
 struct Counting;
 

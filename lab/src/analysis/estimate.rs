@@ -131,6 +131,45 @@ pub fn estimate(config: &EstimateConfig) -> Result<EstimateReport, EstimateError
         ..SimConfig::THESIS_EXP1
     };
     let dt = sim_config.sample_period_s;
+    let mut estimator = estimator(config, dt)?;
+    let excitation = Multisine::exp1_tangential();
+    let (x0, v0) = excitation.eval(0.0);
+    let mut sim = SlidingObjectSim::new(sim_config, x0, v0, Pcg64::seed_from_u64(config.seed))?;
+    let run = drive(
+        &mut sim,
+        &mut estimator,
+        &excitation,
+        x0,
+        config.seconds,
+        dt,
+    );
+    let reconstruction_error_pct = run
+        .stable_since
+        .and_then(|ts| reconstruction_error_pct(&run.trace, ts));
+    let truth = sim_config.object;
+    let estimated = estimator.latest().and_then(|g| match g.params() {
+        Params::SlidingMass(p) => Some(p),
+        _ => None,
+    });
+    Ok(EstimateReport {
+        reconstruction_error_pct,
+        time_to_stable_s: run.stable_since.map(|t| t - run.onset_s),
+        truth,
+        estimated,
+        confidence: estimator.latest().map(|g| g.confidence()),
+        condition: estimator.latest().map(|g| g.condition()),
+        confirmed_updates: estimator.stats().confirmed,
+        low_confidence_updates: estimator.stats().low_confidence_confirmed,
+        error_pct: estimated.map(|e| ParameterErrors::between(&e, &truth)),
+        static_friction_n: sim_config.static_friction_n,
+        seconds: config.seconds,
+        cutoff_hz: config.cutoff_hz,
+    })
+}
+
+/// The estimator of the sliding mass with friction and no ground spring, one axis, filtered
+/// and forgetting as `config` says, at sample period `dt` [s].
+fn estimator(config: &EstimateConfig, dt: f64) -> Result<Estimator, EstimateError> {
     let structure = Structure::SlidingMass {
         ground_spring: false,
         friction: true,
@@ -139,12 +178,31 @@ pub fn estimate(config: &EstimateConfig) -> Result<EstimateReport, EstimateError
     est_config.filter.svf.cutoff_hz = config.cutoff_hz;
     est_config.filter.svf.sample_period_s = dt;
     est_config.forgetting = config.forgetting;
-    let mut estimator = Estimator::new(est_config)?;
-    let excitation = Multisine::exp1_tangential();
-    let (x0, v0) = excitation.eval(0.0);
-    let mut sim = SlidingObjectSim::new(sim_config, x0, v0, Pcg64::seed_from_u64(config.seed))?;
+    Ok(Estimator::new(est_config)?)
+}
+
+/// What a run recorded.
+struct Run {
+    /// Contact onset [s].
+    onset_s: f64,
+    /// Since when the parameters have passed every gate, if they still do at the end [s].
+    stable_since: Option<f64>,
+    /// (time, y, a-priori prediction) while in contact.
+    trace: Vec<(f64, f64, f64)>,
+}
+
+/// Taring out of contact, then `seconds` of contact following `excitation`: steps the
+/// simulated object and the estimator together, tick by tick.
+fn drive(
+    sim: &mut SlidingObjectSim,
+    estimator: &mut Estimator,
+    excitation: &Multisine,
+    x0: f64,
+    seconds: f64,
+    dt: f64,
+) -> Run {
     let tare_ticks = (TARE_S / dt).round() as usize;
-    let total = tare_ticks + (config.seconds / dt).round() as usize;
+    let total = tare_ticks + (seconds / dt).round() as usize;
     let onset_s = tare_ticks as f64 * dt;
     let mut stable_since: Option<f64> = None;
     // (time, y, a-priori prediction) while in contact.
@@ -181,39 +239,34 @@ pub fn estimate(config: &EstimateConfig) -> Result<EstimateReport, EstimateError
             }
         }
     }
-    let reconstruction_error_pct = stable_since.and_then(|ts| {
-        let (e2, y2) = trace
-            .iter()
-            .filter(|(t, ..)| *t >= ts)
-            .fold((0.0, 0.0), |(e, y), (_, yy, p)| {
-                (e + (yy - p) * (yy - p), y + yy * yy)
-            });
-        (y2 > 0.0).then(|| 100.0 * (e2 / y2).sqrt())
-    });
-    let truth = sim_config.object;
-    let estimated = estimator.latest().and_then(|g| match g.params() {
-        Params::SlidingMass(p) => Some(p),
-        _ => None,
-    });
-    let rel = |e: f64, t: f64| 100.0 * (e - t) / t;
-    Ok(EstimateReport {
-        reconstruction_error_pct,
-        time_to_stable_s: stable_since.map(|t| t - onset_s),
-        truth,
-        estimated,
-        confidence: estimator.latest().map(|g| g.confidence()),
-        condition: estimator.latest().map(|g| g.condition()),
-        confirmed_updates: estimator.stats().confirmed,
-        low_confidence_updates: estimator.stats().low_confidence_confirmed,
-        error_pct: estimated.map(|e| ParameterErrors {
+    Run {
+        onset_s,
+        stable_since,
+        trace,
+    }
+}
+
+/// RMS of `y − prediction` over RMS `y` from `since` [s] to the end [%]; `None` without force.
+fn reconstruction_error_pct(trace: &[(f64, f64, f64)], since: f64) -> Option<f64> {
+    let (e2, y2) = trace
+        .iter()
+        .filter(|(t, ..)| *t >= since)
+        .fold((0.0, 0.0), |(e, y), (_, yy, p)| {
+            (e + (yy - p) * (yy - p), y + yy * yy)
+        });
+    (y2 > 0.0).then(|| 100.0 * (e2 / y2).sqrt())
+}
+
+impl ParameterErrors {
+    /// `(estimated − true)/true` of each parameter [%].
+    fn between(e: &Physical, truth: &Physical) -> ParameterErrors {
+        let rel = |e: f64, t: f64| 100.0 * (e - t) / t;
+        ParameterErrors {
             mass: rel(e.mass_kg, truth.mass_kg),
             b_ground: rel(e.b_ground_ns_per_m, truth.b_ground_ns_per_m),
             k_contact: rel(e.k_contact_n_per_m, truth.k_contact_n_per_m),
             b_contact: rel(e.b_contact_ns_per_m, truth.b_contact_ns_per_m),
             coulomb: rel(e.coulomb_n, truth.coulomb_n),
-        }),
-        static_friction_n: sim_config.static_friction_n,
-        seconds: config.seconds,
-        cutoff_hz: config.cutoff_hz,
-    })
+        }
+    }
 }

@@ -177,63 +177,15 @@ fn measure(args: &Args) -> Result<Measured> {
     args.validate()?;
     let w = workload::plane_sweep(args.points, args.steps, args.noise_m, args.seed)
         .context("building the workload plane")?;
-
-    let mut build_ns = Vec::with_capacity(args.builds);
-    let mut index = None;
-    for _ in 0..args.builds {
-        let t0 = Instant::now();
-        let built = CloudIndex::build(&w.frame)?;
-        build_ns.push(t0.elapsed().as_nanos() as f64);
-        index = Some(built);
-    }
-    let index = index.context("no index built")?;
+    let (mut build_ns, index) = timed_builds(&w, args.builds)?;
     let kd = Counted::new(&index);
     let brute_index = index.brute_force();
     let brute = Counted::new(&brute_index);
-
-    // Pass 1: every tick on the kd-tree, timed.
-    let mut proxy = Proxy::new(w.config, w.hips[0])?;
-    proxy.prepare(&kd);
-    let mut kd_ticks = Vec::with_capacity(w.hips.len());
-    let mut touching = 0;
-    for hip in &w.hips {
-        let (tick, out) = timed_step(&mut proxy, *hip, &kd);
-        kd_ticks.push(tick);
-        touching += usize::from(out.state.is_touching());
-    }
-
-    // Pass 2: the same path again (untimed, same bits); at the chosen ticks a copy of the
-    // proxy takes the tick by brute force, timed. Separate passes keep the brute-force scans
-    // from evicting the kd-tree's caches in the timed run.
+    let (kd_ticks, touching) = kd_pass(&w, &kd)?;
     let brute_ticks: Vec<usize> = (0..args.brute_steps)
         .map(|i| i * args.steps / args.brute_steps)
         .collect();
-    let mut proxy = Proxy::new(w.config, w.hips[0])?;
-    proxy.prepare(&kd);
-    let mut brute_timed = Vec::with_capacity(brute_ticks.len());
-    let mut brute_queried = Vec::with_capacity(brute_ticks.len());
-    let mut max_gap_m: f64 = 0.0;
-    let mut picks = brute_ticks.iter().peekable();
-    for (k, hip) in w.hips.iter().enumerate() {
-        let twin = picks.next_if_eq(&&k).map(|_| {
-            // A clone's buffer holds only what it contains: reserve, so the timed step does
-            // not allocate.
-            let mut twin = proxy.clone();
-            twin.prepare(&brute);
-            twin
-        });
-        let (kd_tick, kd_out) = timed_step(&mut proxy, *hip, &kd);
-        if let Some(mut twin) = twin {
-            let (tick, out) = timed_step(&mut twin, *hip, &brute);
-            brute_timed.push(tick);
-            brute_queried.push((tick.queried, kd_tick.queried));
-            let gap = (0..3)
-                .map(|i| (kd_out.proxy_m[i] - out.proxy_m[i]).abs())
-                .fold(0.0, f64::max);
-            max_gap_m = max_gap_m.max(gap);
-        }
-    }
-
+    let twins = brute_pass(&w, &kd, &brute, &brute_ticks)?;
     let report = Report {
         points: args.points,
         // Nanosecond timings, reported to the nanosecond in ms and µs.
@@ -245,21 +197,99 @@ fn measure(args: &Args) -> Result<Measured> {
         query_step_us_median: quantile_us(&mut querying(&kd_ticks), 0.5),
         query_step_us_p99: quantile_us(&mut querying(&kd_ticks), 0.99),
         query_steps: querying(&kd_ticks).len(),
-        brute_force_step_us_median: us(percentile(&mut all(&brute_timed), 0.5)),
-        brute_force_step_us_p99: us(percentile(&mut all(&brute_timed), 0.99)),
-        brute_force_step_us_mean: us(mean(&all(&brute_timed))),
-        brute_force_steps: brute_timed.len(),
-        brute_force_query_step_us_median: quantile_us(&mut querying(&brute_timed), 0.5),
-        brute_force_query_step_us_p99: quantile_us(&mut querying(&brute_timed), 0.99),
-        brute_force_query_steps: querying(&brute_timed).len(),
+        brute_force_step_us_median: us(percentile(&mut all(&twins.timed), 0.5)),
+        brute_force_step_us_p99: us(percentile(&mut all(&twins.timed), 0.99)),
+        brute_force_step_us_mean: us(mean(&all(&twins.timed))),
+        brute_force_steps: twins.timed.len(),
+        brute_force_query_step_us_median: quantile_us(&mut querying(&twins.timed), 0.5),
+        brute_force_query_step_us_p99: quantile_us(&mut querying(&twins.timed), 0.99),
+        brute_force_query_steps: querying(&twins.timed).len(),
     };
     Ok(Measured {
         report,
         brute_ticks,
-        brute_queried,
+        brute_queried: twins.queried,
         touching,
-        max_gap_m,
+        max_gap_m: twins.max_gap_m,
     })
+}
+
+/// Builds the kd-tree of the workload's frame `builds` times: each build's time [ns] and the
+/// last index.
+fn timed_builds(w: &workload::Workload, builds: usize) -> Result<(Vec<f64>, CloudIndex)> {
+    let mut build_ns = Vec::with_capacity(builds);
+    let mut index = None;
+    for _ in 0..builds {
+        let t0 = Instant::now();
+        let built = CloudIndex::build(&w.frame)?;
+        build_ns.push(t0.elapsed().as_nanos() as f64);
+        index = Some(built);
+    }
+    let index = index.context("no index built")?;
+    Ok((build_ns, index))
+}
+
+/// Pass 1: every tick on the kd-tree, timed; with the number of ticks in contact.
+fn kd_pass(w: &workload::Workload, kd: &Counted<'_, CloudIndex>) -> Result<(Vec<Tick>, usize)> {
+    let mut proxy = Proxy::new(w.config, w.hips[0])?;
+    proxy.prepare(kd);
+    let mut kd_ticks = Vec::with_capacity(w.hips.len());
+    let mut touching = 0;
+    for hip in &w.hips {
+        let (tick, out) = timed_step(&mut proxy, *hip, kd);
+        kd_ticks.push(tick);
+        touching += usize::from(out.state.is_touching());
+    }
+    Ok((kd_ticks, touching))
+}
+
+/// The brute-force twins' ticks, and how they compare with the kd-tree's.
+struct Twins {
+    /// Each twin's tick.
+    timed: Vec<Tick>,
+    /// Whether each twin queried, and whether the kd-tree queried on that tick.
+    queried: Vec<(bool, bool)>,
+    /// Largest proxy-position difference [m] between a twin and the kd-tree proxy.
+    max_gap_m: f64,
+}
+
+/// Pass 2: the same path again (untimed, same bits); at the chosen ticks a copy of the
+/// proxy takes the tick by brute force, timed. Separate passes keep the brute-force scans
+/// from evicting the kd-tree's caches in the timed run.
+fn brute_pass<B: Neighbours>(
+    w: &workload::Workload,
+    kd: &Counted<'_, CloudIndex>,
+    brute: &Counted<'_, B>,
+    brute_ticks: &[usize],
+) -> Result<Twins> {
+    let mut proxy = Proxy::new(w.config, w.hips[0])?;
+    proxy.prepare(kd);
+    let mut twins = Twins {
+        timed: Vec::with_capacity(brute_ticks.len()),
+        queried: Vec::with_capacity(brute_ticks.len()),
+        max_gap_m: 0.0,
+    };
+    let mut picks = brute_ticks.iter().peekable();
+    for (k, hip) in w.hips.iter().enumerate() {
+        let twin = picks.next_if_eq(&&k).map(|_| {
+            // A clone's buffer holds only what it contains: reserve, so the timed step does
+            // not allocate.
+            let mut twin = proxy.clone();
+            twin.prepare(brute);
+            twin
+        });
+        let (kd_tick, kd_out) = timed_step(&mut proxy, *hip, kd);
+        if let Some(mut twin) = twin {
+            let (tick, out) = timed_step(&mut twin, *hip, brute);
+            twins.timed.push(tick);
+            twins.queried.push((tick.queried, kd_tick.queried));
+            let gap = (0..3)
+                .map(|i| (kd_out.proxy_m[i] - out.proxy_m[i]).abs())
+                .fold(0.0, f64::max);
+            twins.max_gap_m = twins.max_gap_m.max(gap);
+        }
+    }
+    Ok(twins)
 }
 
 /// One proxy step, timed [ns], and whether it queried the cloud.

@@ -1,6 +1,6 @@
 //! `mmt estimate`.
 
-use crate::analysis::estimate::{EstimateConfig, estimate};
+use crate::analysis::estimate::{EstimateConfig, EstimateReport, estimate};
 use anyhow::Result;
 use clap::Args;
 use mmt::model::backsolve::Confidence;
@@ -35,6 +35,13 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     if args.json {
         return super::print_json(&report);
     }
+    print_summary(&report);
+    print_parameters(&report);
+    Ok(())
+}
+
+/// The run's set-up, its figures against the thesis's, and the back-solve's confidence.
+fn print_summary(report: &EstimateReport) {
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("never".to_string(), |v| format!("{v:.3} {unit}"));
     println!(
@@ -62,6 +69,10 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         report.low_confidence_updates,
         report.confirmed_updates
     );
+}
+
+/// True and estimated parameters, with the relative error of each.
+fn print_parameters(report: &EstimateReport) {
     let t = report.truth;
     println!(
         "{:<22} {:>12} {:>12} {:>9}",
@@ -104,5 +115,4 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         let err = err.map_or("-".to_string(), |v| format!("{v:+.1} %"));
         println!("{name:<22} {truth:>12.4} {est:>12} {err:>9}");
     }
-    Ok(())
 }

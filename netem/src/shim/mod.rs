@@ -30,6 +30,8 @@ mod stats;
 mod worker;
 
 use std::fmt;
+use std::fs::File;
+use std::io::BufWriter;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -248,69 +250,106 @@ pub fn start(config: ShimConfig) -> Result<ShimHandle, ShimError> {
         })?),
         None => None,
     };
-    let shared = Arc::new(Shared {
-        stop: AtomicBool::new(false),
-        links,
-        client: Mutex::new(None),
-        forwarded: Default::default(),
-        send_errors: Default::default(),
-        out_of_order: Default::default(),
-        lateness: [Histogram::new(), Histogram::new()],
-        no_client: AtomicU64::new(0),
-        recv_errors: AtomicU64::new(0),
-        client_changes: AtomicU64::new(0),
-        discarded_at_shutdown: AtomicU64::new(0),
-        log_records_dropped: AtomicU64::new(0),
-        log_error: Mutex::new(None),
-        realtime_error: Mutex::new(None),
-        next_seq: AtomicU64::new(0),
-    });
+    let shared = Arc::new(Shared::new(links));
     let mut handle = ShimHandle {
         shared: Arc::clone(&shared),
         local_addr,
         threads: Vec::with_capacity(4),
     };
     let log_tx = match writer {
-        Some(out) => {
-            let (tx, rx) = mpsc::sync_channel(log::LOG_CHANNEL_CAPACITY);
-            let shared = Arc::clone(&shared);
-            handle.spawn("netem-log", move || {
-                log::write_all(out, rx, &shared.log_error);
-            })?;
-            Some(tx)
-        }
+        Some(out) => Some(handle.start_log_writer(out)?),
         None => None,
     };
     let sink = log::LogSink::new(log_tx, Arc::clone(&shared));
-    let (packet_tx, packet_rx) = mpsc::channel();
-    let scheduler = worker::Scheduler {
-        shared: Arc::clone(&shared),
-        sockets: sockets.clone(),
-        rx: packet_rx,
-        queue: DueQueue::new(),
-        spin_window_ns: config.spin_window_ns,
-        realtime_priority: config.realtime_priority,
-        log: sink.clone(),
-        highest_released: [None; 2],
-    };
-    handle.spawn("netem-scheduler", move || scheduler.run())?;
+    let packet_tx = handle.start_scheduler(&config, &sockets, sink.clone())?;
     for direction in Direction::ALL {
+        handle.start_receiver(direction, &sockets, packet_tx.clone(), sink.clone())?;
+    }
+    Ok(handle)
+}
+
+impl Shared {
+    /// The state of a shim that has not started: no client, every counter at zero.
+    fn new(links: [Mutex<Link>; 2]) -> Shared {
+        Shared {
+            stop: AtomicBool::new(false),
+            links,
+            client: Mutex::new(None),
+            forwarded: Default::default(),
+            send_errors: Default::default(),
+            out_of_order: Default::default(),
+            lateness: [Histogram::new(), Histogram::new()],
+            no_client: AtomicU64::new(0),
+            recv_errors: AtomicU64::new(0),
+            client_changes: AtomicU64::new(0),
+            discarded_at_shutdown: AtomicU64::new(0),
+            log_records_dropped: AtomicU64::new(0),
+            log_error: Mutex::new(None),
+            realtime_error: Mutex::new(None),
+            next_seq: AtomicU64::new(0),
+        }
+    }
+}
+
+impl ShimHandle {
+    /// Starts the thread that writes the packet log to `out`; returns its input.
+    fn start_log_writer(
+        &mut self,
+        out: BufWriter<File>,
+    ) -> Result<mpsc::SyncSender<log::LogRecord>, ShimError> {
+        let (tx, rx) = mpsc::sync_channel(log::LOG_CHANNEL_CAPACITY);
+        let shared = Arc::clone(&self.shared);
+        self.spawn("netem-log", move || {
+            log::write_all(out, rx, &shared.log_error);
+        })?;
+        Ok(tx)
+    }
+
+    /// Starts the scheduler thread, which releases packets on time; returns its input.
+    fn start_scheduler(
+        &mut self,
+        config: &ShimConfig,
+        sockets: &worker::Sockets,
+        log: log::LogSink,
+    ) -> Result<mpsc::Sender<(u64, u64, worker::Packet)>, ShimError> {
+        let (packet_tx, packet_rx) = mpsc::channel();
+        let scheduler = worker::Scheduler {
+            shared: Arc::clone(&self.shared),
+            sockets: sockets.clone(),
+            rx: packet_rx,
+            queue: DueQueue::new(),
+            spin_window_ns: config.spin_window_ns,
+            realtime_priority: config.realtime_priority,
+            log,
+            highest_released: [None; 2],
+        };
+        self.spawn("netem-scheduler", move || scheduler.run())?;
+        Ok(packet_tx)
+    }
+
+    /// Starts the receive thread of `direction`, which hands packets to the scheduler by `tx`.
+    fn start_receiver(
+        &mut self,
+        direction: Direction,
+        sockets: &worker::Sockets,
+        tx: mpsc::Sender<(u64, u64, worker::Packet)>,
+        log: log::LogSink,
+    ) -> Result<(), ShimError> {
         let receiver = worker::Receiver {
             direction,
-            shared: Arc::clone(&shared),
+            shared: Arc::clone(&self.shared),
             socket: sockets.receiving(direction),
-            tx: packet_tx.clone(),
-            log: sink.clone(),
+            tx,
+            log,
         };
-        handle.spawn(
+        self.spawn(
             match direction {
                 Direction::Up => "netem-recv-up",
                 Direction::Down => "netem-recv-down",
             },
             move || receiver.run(),
-        )?;
+        )
     }
-    Ok(handle)
 }
 
 /// Runs the shim until `stop` becomes true (checked every 50 ms), then shuts it down and returns

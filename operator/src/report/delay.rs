@@ -64,37 +64,9 @@ pub fn estimate(
     let grid = resample(measured, n);
     let lo = -((range.before_s / period_s).round() as i64);
     let hi = (range.after_s / period_s).round() as i64;
-    let correlation = |lag: i64| -> Option<(f64, usize)> {
-        let (mut sr, mut sm, mut srr, mut smm, mut srm, mut count) =
-            (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
-        for k in 0..n {
-            if !use_tick[k] {
-                continue;
-            }
-            let j = k as i64 + lag;
-            let Some(m) = usize::try_from(j)
-                .ok()
-                .and_then(|j| grid.get(j).copied().flatten())
-            else {
-                continue;
-            };
-            let r = rendered[k];
-            sr += r;
-            sm += m;
-            srr += r * r;
-            smm += m * m;
-            srm += r * m;
-            count += 1;
-        }
-        if count < 100 {
-            return None;
-        }
-        let c = count as f64;
-        let cov = srm - sr * sm / c;
-        let var = (srr - sr * sr / c) * (smm - sm * sm / c);
-        (var > 0.0).then(|| (cov / var.sqrt(), count))
-    };
-    let scores: Vec<Option<(f64, usize)>> = (lo..=hi).map(correlation).collect();
+    let scores: Vec<Option<(f64, usize)>> = (lo..=hi)
+        .map(|lag| correlation(rendered, use_tick, &grid, lag))
+        .collect();
     let (best, &(peak, pairs)) = scores
         .iter()
         .enumerate()
@@ -103,12 +75,60 @@ pub fn estimate(
     if peak < MIN_PEAK {
         return None;
     }
-    // Parabola through the peak and its neighbours.
+    let lag_ticks = (lo + best as i64) as f64 + parabola_shift(&scores, best, peak);
+    Some(DelayEstimate {
+        delay_ms: lag_ticks * period_s * 1e3,
+        peak_correlation: peak,
+        pairs,
+    })
+}
+
+/// Pearson correlation of `rendered` (on the ticks in `use_tick`) with the resampled measured
+/// signal `grid` shifted by `lag` ticks, and the pairs it is over; `None` under 100 pairs or
+/// for a constant signal.
+fn correlation(
+    rendered: &[f64],
+    use_tick: &[bool],
+    grid: &[Option<f64>],
+    lag: i64,
+) -> Option<(f64, usize)> {
+    let (mut sr, mut sm, mut srr, mut smm, mut srm, mut count) = (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
+    for k in 0..rendered.len() {
+        if !use_tick[k] {
+            continue;
+        }
+        let j = k as i64 + lag;
+        let Some(m) = usize::try_from(j)
+            .ok()
+            .and_then(|j| grid.get(j).copied().flatten())
+        else {
+            continue;
+        };
+        let r = rendered[k];
+        sr += r;
+        sm += m;
+        srr += r * r;
+        smm += m * m;
+        srm += r * m;
+        count += 1;
+    }
+    if count < 100 {
+        return None;
+    }
+    let c = count as f64;
+    let cov = srm - sr * sm / c;
+    let var = (srr - sr * sr / c) * (smm - sm * sm / c);
+    (var > 0.0).then(|| (cov / var.sqrt(), count))
+}
+
+/// The peak's offset in ticks, within ±0.5, from the parabola through the peak (`peak` at
+/// index `best` of `scores`) and its neighbours; 0 without both neighbours or a maximum.
+fn parabola_shift(scores: &[Option<(f64, usize)>], best: usize, peak: f64) -> f64 {
     let at = |i: Option<usize>| {
         i.and_then(|i| scores.get(i).copied().flatten())
             .map(|s| s.0)
     };
-    let shift = match (at(best.checked_sub(1)), at(Some(best + 1))) {
+    match (at(best.checked_sub(1)), at(Some(best + 1))) {
         (Some(before), Some(after)) => {
             let curvature = before - 2.0 * peak + after;
             if curvature < 0.0 {
@@ -118,13 +138,7 @@ pub fn estimate(
             }
         }
         _ => 0.0,
-    };
-    let lag_ticks = (lo + best as i64) as f64 + shift;
-    Some(DelayEstimate {
-        delay_ms: lag_ticks * period_s * 1e3,
-        peak_correlation: peak,
-        pairs,
-    })
+    }
 }
 
 /// The measured samples on the tick grid `0..n` (linear interpolation between neighbours at most

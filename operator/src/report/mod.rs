@@ -12,10 +12,11 @@
 //! the remote-only contact figures are left out too.
 
 pub mod delay;
+mod table;
 
-use std::fmt::Write as _;
-
-use metrics::{ExperimentReport, NodeInfo, RunInfo, Series, analyse, parameter_report};
+use metrics::{
+    ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series, analyse, parameter_report,
+};
 use mmt::render::RendererStats;
 use node::gated_from_wire;
 use node::operator::OperatorOutput;
@@ -34,6 +35,7 @@ use crate::safety::SafetyStats;
 use mmt::vec3;
 
 pub use delay::{DelayEstimate, LagRange};
+pub use table::table;
 
 /// Everything a networked run reports.
 #[derive(Clone, Debug, Serialize)]
@@ -170,16 +172,8 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             .or(estimate.map(|e| e.delay_ms.max(0.0)))
             .unwrap_or(0.0),
     };
-    let parameters = match (&facts.truth, end.parameters) {
-        (Some(scene), Some(p)) => {
-            let gated = |s: Option<ParameterSet>| s.and_then(|s| gated_from_wire(&s).ok());
-            let (n, t) = (gated(p.normal), gated(p.tangential));
-            parameter_report(scene, [n.as_ref(), t.as_ref()])
-        }
-        _ => Vec::new(),
-    };
     let nodes = NodeInfo {
-        parameters,
+        parameters: parameters(facts, end),
         operator: end.node,
         ..NodeInfo::default()
     };
@@ -187,14 +181,6 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
     // No shadow node runs in the app: its figures would repeat the operator's.
     experiment.rms_error_pct_remote_contact = None;
     experiment.contact_switch_latency_ms.remote_only = None;
-    let mut downlink: Vec<i64> = rec
-        .measurements
-        .iter()
-        .filter_map(|m| {
-            let offset = m.offset_ns.or(facts.final_offset_ns)?;
-            Some(m.received_ns - (m.message.header.send_time_ns - offset))
-        })
-        .collect();
     let report = NetworkedReport {
         experiment,
         measured_delay_ms: estimate.map(|e| e.delay_ms),
@@ -204,7 +190,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         loop_timing: facts.timing,
         missing_ticks,
         link: facts.link,
-        downlink_latency: Summary::of_samples(&mut downlink),
+        downlink_latency: downlink_latency(facts, rec),
         measurements: (
             rec.measurements.len() as u64,
             facts.measurements_overwritten,
@@ -228,6 +214,32 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
+}
+
+/// The last parameters received against the scene's truth, when the run knows it.
+fn parameters(facts: &RunFacts, end: &LoopEnd) -> Vec<ParameterReport> {
+    match (&facts.truth, end.parameters) {
+        (Some(scene), Some(p)) => {
+            let gated = |s: Option<ParameterSet>| s.and_then(|s| gated_from_wire(&s).ok());
+            let (n, t) = (gated(p.normal), gated(p.tangential));
+            parameter_report(scene, [n.as_ref(), t.as_ref()])
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Each measurement's receipt minus its send time on the operator's clock (mapped with the
+/// clock offset of its time, else the final one): the downlink's one-way latency.
+fn downlink_latency(facts: &RunFacts, rec: &Recording) -> Summary {
+    let mut downlink: Vec<i64> = rec
+        .measurements
+        .iter()
+        .filter_map(|m| {
+            let offset = m.offset_ns.or(facts.final_offset_ns)?;
+            Some(m.received_ns - (m.message.header.send_time_ns - offset))
+        })
+        .collect();
+    Summary::of_samples(&mut downlink)
 }
 
 /// The series, one entry per tick; ticks the loop skipped repeat the previous one (counted).
@@ -319,185 +331,6 @@ fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<Delay
         period * 1e-9,
         LagRange::default(),
     )
-}
-
-/// The stdout table: `mmt experiment`'s, then the networked figures (with `peer`'s rows where a
-/// run has them).
-pub fn table(r: &NetworkedReport, peer: &PeerFigures) -> String {
-    let mut out = metrics::table(&r.experiment);
-    let _ = write_extras(&mut out, r, peer);
-    out
-}
-
-fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> std::fmt::Result {
-    let opt =
-        |v: Option<f64>, unit: &str| v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"));
-    // p50 / p99 / max of a distribution in µs, or in ms.
-    let us = |q: &Summary| format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us);
-    let ms = |q: &Summary| {
-        format!(
-            "{:.2} / {:.2} / {:.2} ms",
-            q.p50_us / 1e3,
-            q.p99_us / 1e3,
-            q.max_us / 1e3
-        )
-    };
-    let count = |t: &TimingReport| format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks);
-    // Without the scene's truth, the parameters as received.
-    if let Some(p) = r
-        .parameters_received
-        .filter(|_| r.experiment.parameters.is_empty())
-    {
-        for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
-            if let Some(set) = set {
-                writeln!(out, "parameters received, {axes}: {:.4?}", set.terms)?;
-            }
-        }
-    }
-    let mut rows: Vec<(String, String)> = Vec::new();
-    let mut row = |name: &str, value: String| rows.push((name.to_owned(), value));
-    row(
-        "measured_delay_ms (rendered leads measured)",
-        opt(r.measured_delay_ms, "ms"),
-    );
-    if let Some(d) = r.set_delay_ms {
-        row("  set one-way delay", format!("{d:.2} ms"));
-    }
-    if let Some(e) = &r.delay_estimate {
-        row("  peak correlation", format!("{:.4}", e.peak_correlation));
-    }
-    let t = &r.loop_timing;
-    row("haptic loop period p50 / p99 / max", us(&t.period));
-    row("  lateness p50 / p99 / max", us(&t.lateness));
-    row("  work p50 / p99 / max", us(&t.work));
-    row("  ticks, overruns, skipped", count(t));
-    let l = &r.link;
-    row(
-        "datagrams sent / received",
-        format!("{} / {}", l.sent, l.received),
-    );
-    row(
-        "  late / lost / duplicate / garbage",
-        format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
-    );
-    // What quinn itself did with the datagrams it was handed: every one on the wire (none held
-    // back by a congestion window or pacing), no congestion events.
-    let quinn = |l: &LinkReport| {
-        format!(
-            "{} of {} / {} / {}",
-            l.quinn_datagrams_transmitted, l.sent, l.quinn_congestion_events, l.quinn_lost_packets
-        )
-    };
-    row(
-        "  quinn, operator: on the wire / congestion events / lost packets",
-        quinn(l),
-    );
-    if let Some(l) = &peer.telerobot_link {
-        row(
-            "  quinn, telerobot: on the wire / congestion events / lost packets",
-            quinn(l),
-        );
-    }
-    row(
-        "  longest gap between accepted datagrams",
-        format!("{:.1} ms", l.max_gap_ms),
-    );
-    row(
-        "RTT smoothed / min",
-        format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
-    );
-    row(
-        "clock offset (telerobot − operator)",
-        opt(l.clock_offset_ms, "ms"),
-    );
-    // One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
-    let mut latency = |name: &str, l: &Summary| {
-        row(name, ms(l));
-        if let Some(d) = r.set_delay_ms {
-            row(
-                "  beyond the set delay p50 / p99 / max",
-                us(&l.shifted(-d * 1e3)),
-            );
-        }
-    };
-    if let Some(l) = &peer.uplink_latency {
-        latency("uplink: command sample → telerobot receipt", l);
-    }
-    latency(
-        "downlink: measurement send → operator receipt",
-        &r.downlink_latency,
-    );
-    row("sessions", r.sessions.to_string());
-    if let Some(t) = &peer.telerobot_timing {
-        row("telerobot loop period p50 / p99 / max", us(&t.period));
-        row("  ticks, overruns, skipped", count(t));
-    }
-    if let Some(l) = &peer.shim_lateness {
-        row("netem release lateness p50 / p99 / max", us(l));
-    }
-    let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
-    row(
-        "renderer ticks: unresolved (gate) / clipped",
-        format!(
-            "{} / {}",
-            sum(|s| s.unresolved_ticks),
-            sum(|s| s.clipped_ticks)
-        ),
-    );
-    let s = &r.safety;
-    row(
-        "safety episodes: watchdog / rate / max / workspace",
-        format!(
-            "{} / {} / {} / {}",
-            s.watchdog_fading.episodes,
-            s.rate_limited.episodes,
-            s.saturated.episodes,
-            s.workspace.episodes
-        ),
-    );
-    row(
-        "  loop overrun / stale parameters / clutch",
-        format!(
-            "{} / {} / {}",
-            s.loop_overrun.episodes, s.stale_params.episodes, s.clutch.episodes
-        ),
-    );
-    row(
-        "  non-finite force / position / velocity",
-        format!(
-            "{} / {} / {}",
-            s.non_finite_force.episodes,
-            s.non_finite_position.episodes,
-            s.non_finite_velocity.episodes
-        ),
-    );
-    row(
-        "  position-scale changes refused",
-        s.scale_rejections.to_string(),
-    );
-    row(
-        "device state, faults",
-        format!("{:?} / {}", r.device_state, r.device_faults),
-    );
-    if let Some(f) = &r.device_fault {
-        row("  fault", f.clone());
-    }
-    let p = &s.passivity;
-    row(
-        "passivity: min energy / dissipated / ticks",
-        format!(
-            "{:.2} / {:.2} mJ / {} ({} capped)",
-            p.min_energy_j * 1e3,
-            p.dissipated_j * 1e3,
-            p.controlling.ticks,
-            p.capped.ticks
-        ),
-    );
-    writeln!(out, "network")?;
-    for (name, value) in rows {
-        writeln!(out, "{name:<46} {value:>14}")?;
-    }
-    Ok(())
 }
 
 /// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the

@@ -54,6 +54,7 @@ pub use watchdog::{Model, SoftWatchdog, WatchdogConfig};
 
 use crate::device::{DeviceCapabilities, Workspace};
 use mmt::vec3::{self, Vec3};
+use watchdog::WatchdogTick;
 
 /// Safety settings. The device's limits come from its [`DeviceCapabilities`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -333,8 +334,58 @@ impl SafetyLayer {
 
     /// Force path, once per tick: the force to hand to `servo_cf` [N]. See the module docs.
     pub fn filter_force(&mut self, tick: &ForceTick) -> Vec3 {
+        self.stats.ticks += 1;
+        let wd = self.watch(tick);
+
+        // The energy of the interval that just ended, with the force that was written.
+        self.passivity.observe(tick.measured_cp, self.last_force);
+
+        // 1. Non-finite: zero at once, bypassing the rate limit.
+        let finite = vec3::is_finite(tick.force_n);
+        log_edge(
+            self.stats.non_finite_force.record(!finite),
+            "non-finite force",
+            "renderer force not finite; zero written",
+        );
+        if !finite {
+            log_edge(self.stats.rate_limited.record(false), "rate limit", "");
+            self.last_force = vec3::ZERO;
+            return vec3::ZERO;
+        }
+        let renderer = if self.position.clutched() {
+            vec3::ZERO
+        } else {
+            tick.force_n
+        };
+
+        // 2. Parameter-age fade, on the renderer's force only.
+        let renderer = vec3::scale(renderer, wd.model_gain);
+
+        // 3. Saturation and 4. the workspace spring.
+        let total = self.within_budget(renderer, tick.measured_cp);
+
+        // 5. Loop-overrun fade, on everything.
+        let faded = vec3::scale(total, wd.timing_gain);
+
+        // 6. Rate limit.
+        let out = self.rate_limit(faded, wd.dt_s);
+
+        // 7. Passivity, then the device limit again.
+        let out = self.passive(out, wd.dt_s);
+
+        // 8. Final guard.
+        let out = if vec3::is_finite(out) {
+            out
+        } else {
+            vec3::ZERO
+        };
+        self.last_force = out;
+        out
+    }
+
+    /// The watchdog's tick, with its three rules' state changes logged.
+    fn watch(&mut self, tick: &ForceTick) -> WatchdogTick {
         let s = &mut self.stats;
-        s.ticks += 1;
         let wd = self.watchdog.step(tick.now, tick.model);
         log_edge(
             s.loop_overrun.record(wd.overrun),
@@ -351,38 +402,20 @@ impl SafetyLayer {
             "watchdog",
             "force below full strength",
         );
+        wd
+    }
 
-        // The energy of the interval that just ended, with the force that was written.
-        self.passivity.observe(tick.measured_cp, self.last_force);
-
-        // 1. Non-finite: zero at once, bypassing the rate limit.
-        let finite = vec3::is_finite(tick.force_n);
-        log_edge(
-            s.non_finite_force.record(!finite),
-            "non-finite force",
-            "renderer force not finite; zero written",
-        );
-        if !finite {
-            log_edge(s.rate_limited.record(false), "rate limit", "");
-            self.last_force = vec3::ZERO;
-            return vec3::ZERO;
-        }
-        let renderer = if self.position.clutched() {
-            vec3::ZERO
-        } else {
-            tick.force_n
-        };
-
-        // 2. Parameter-age fade, on the renderer's force only.
-        let renderer = vec3::scale(renderer, wd.model_gain);
-
+    /// Steps 3 and 4: the renderer's force saturated, plus the workspace spring at the device
+    /// position `measured_cp` with priority in the force budget.
+    fn within_budget(&mut self, renderer: Vec3, measured_cp: Vec3) -> Vec3 {
+        let s = &mut self.stats;
         // 3. Saturation of the renderer force.
         let mut saturated = vec3::norm(renderer) > self.max_force_n;
         let renderer = vec3::clamp_norm(renderer, self.max_force_n);
 
         // 4. Workspace spring with priority in the force budget.
-        let outside = if vec3::is_finite(tick.measured_cp) {
-            self.workspace.excess(tick.measured_cp)
+        let outside = if vec3::is_finite(measured_cp) {
+            self.workspace.excess(measured_cp)
         } else {
             vec3::ZERO
         };
@@ -400,40 +433,33 @@ impl SafetyLayer {
             "saturation",
             "force limited to the device maximum",
         );
-        let total = vec3::add(spring, vec3::scale(renderer, alpha));
+        vec3::add(spring, vec3::scale(renderer, alpha))
+    }
 
-        // 5. Loop-overrun fade, on everything.
-        let faded = vec3::scale(total, wd.timing_gain);
-
-        // 6. Rate limit.
-        let step = vec3::sub(faded, self.last_force);
-        let max_step = self.max_rate_n_per_s * wd.dt_s;
+    /// Step 6: the force `target` reached from the last one written at no more than the rate
+    /// limit over `dt_s` [s].
+    fn rate_limit(&mut self, target: Vec3, dt_s: f64) -> Vec3 {
+        let step = vec3::sub(target, self.last_force);
+        let max_step = self.max_rate_n_per_s * dt_s;
         let limited = vec3::norm(step) > max_step;
         log_edge(
-            s.rate_limited.record(limited),
+            self.stats.rate_limited.record(limited),
             "rate limit",
             "force change limited",
         );
-        let out = vec3::add(self.last_force, vec3::clamp_norm(step, max_step));
+        vec3::add(self.last_force, vec3::clamp_norm(step, max_step))
+    }
 
-        // 7. Passivity, then the device limit again.
+    /// Step 7: the passivity controller's damping added to `out`, then the device limit again.
+    fn passive(&mut self, out: Vec3, dt_s: f64) -> Vec3 {
         // The controller's own episodes are counted, not logged: they can be many short ones.
-        let (out, _, capped) = self.passivity.control(out, wd.dt_s);
+        let (out, _, capped) = self.passivity.control(out, dt_s);
         log_edge(
             capped,
             "passivity cap",
             "passivity damping capped at the device's limit",
         );
-        let out = vec3::clamp_norm(out, self.max_force_n);
-
-        // 8. Final guard.
-        let out = if vec3::is_finite(out) {
-            out
-        } else {
-            vec3::ZERO
-        };
-        self.last_force = out;
-        out
+        vec3::clamp_norm(out, self.max_force_n)
     }
 }
 

@@ -74,6 +74,8 @@ fn positive(name: &'static str, v: f64) -> Result<(), SceneError> {
 }
 
 impl Scene {
+    /// Every field against its range, section by section in the file's order: the first
+    /// violation is the error.
     pub(super) fn validate(&self) -> Result<(), SceneError> {
         field(
             "name",
@@ -81,6 +83,25 @@ impl Scene {
             !self.name.trim().is_empty(),
             "a non-empty name",
         )?;
+        self.validate_environment()?;
+        self.validate_surface_and_proxy()?;
+        field(
+            "rates.control_hz",
+            self.rates.control_hz,
+            (100.0..=20_000.0).contains(&self.rates.control_hz),
+            "in [100, 20000] Hz",
+        )?;
+        self.cloud.validate_external()?;
+        if self.cloud.source == CloudKind::Plane {
+            self.validate_cloud()?;
+        }
+        self.validate_model()?;
+        self.validate_limits()
+    }
+
+    /// `[environment]`: signs, the Karnopp order, physical upper limits, and what an anchored
+    /// or a free object needs.
+    fn validate_environment(&self) -> Result<(), SceneError> {
         let e = &self.environment;
         non_negative("environment.mass_kg", e.mass_kg)?;
         non_negative("environment.k_ground_n_per_m", e.k_ground_n_per_m)?;
@@ -104,8 +125,38 @@ impl Scene {
             "environment.stick_velocity_m_per_s",
             e.stick_velocity_m_per_s,
         )?;
-        // Physical upper limits: beyond them the object is not one a haptic device can touch
-        // (the renderer would clip it to nothing) or the numbers are a typo.
+        self.validate_physical_limits()?;
+        if e.anchored {
+            for (name, v) in [
+                ("environment.mass_kg", e.mass_kg),
+                ("environment.k_ground_n_per_m", e.k_ground_n_per_m),
+                ("environment.b_ground_ns_per_m", e.b_ground_ns_per_m),
+                ("environment.static_friction_n", e.static_friction_n),
+                ("environment.coulomb_friction_n", e.coulomb_friction_n),
+            ] {
+                field(
+                    name,
+                    v,
+                    v == 0.0,
+                    "0 for an anchored object (it cannot move)",
+                )?;
+            }
+        } else {
+            positive("environment.mass_kg", e.mass_kg)?;
+            field(
+                "environment.b_ground_ns_per_m",
+                e.b_ground_ns_per_m,
+                e.b_ground_ns_per_m > 0.0 || e.k_ground_n_per_m > 0.0,
+                "> 0 when k_ground is 0 (an undamped free mass never settles)",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Physical upper limits: beyond them the object is not one a haptic device can touch (the
+    /// renderer would clip it to nothing) or the numbers are a typo.
+    fn validate_physical_limits(&self) -> Result<(), SceneError> {
+        let e = &self.environment;
         for (name, v, hi, expected) in [
             ("environment.mass_kg", e.mass_kg, 1e3, "at most 1000 kg"),
             (
@@ -147,30 +198,11 @@ impl Scene {
         ] {
             field(name, v, v <= hi, expected)?;
         }
-        if e.anchored {
-            for (name, v) in [
-                ("environment.mass_kg", e.mass_kg),
-                ("environment.k_ground_n_per_m", e.k_ground_n_per_m),
-                ("environment.b_ground_ns_per_m", e.b_ground_ns_per_m),
-                ("environment.static_friction_n", e.static_friction_n),
-                ("environment.coulomb_friction_n", e.coulomb_friction_n),
-            ] {
-                field(
-                    name,
-                    v,
-                    v == 0.0,
-                    "0 for an anchored object (it cannot move)",
-                )?;
-            }
-        } else {
-            positive("environment.mass_kg", e.mass_kg)?;
-            field(
-                "environment.b_ground_ns_per_m",
-                e.b_ground_ns_per_m,
-                e.b_ground_ns_per_m > 0.0 || e.k_ground_n_per_m > 0.0,
-                "> 0 when k_ground is 0 (an undamped free mass never settles)",
-            )?;
-        }
+        Ok(())
+    }
+
+    /// `[surface]` and `[proxy]`: a finite plane and the proxy's ordered radii.
+    fn validate_surface_and_proxy(&self) -> Result<(), SceneError> {
         let s = &self.surface;
         for v in s.point_m {
             field(
@@ -200,68 +232,70 @@ impl Scene {
             p.r3_m,
             p.r3_m.is_finite() && p.r3_m > p.r2_m,
             "> proxy.r2_m",
-        )?;
-        field(
-            "rates.control_hz",
-            self.rates.control_hz,
-            (100.0..=20_000.0).contains(&self.rates.control_hz),
-            "in [100, 20000] Hz",
-        )?;
+        )
+    }
+
+    /// `[cloud]`, when the simulated camera makes it: sizes, a spacing the proxy cannot slip through, the
+    /// point budget, dropout and rate.
+    fn validate_cloud(&self) -> Result<(), SceneError> {
         let c = &self.cloud;
-        c.validate_external()?;
-        if c.source == CloudKind::Plane {
-            for v in c.size_m {
-                field(
-                    "cloud.size_m",
-                    c.size_m,
-                    v.is_finite() && v > 0.0 && v <= 100.0,
-                    "two sizes in (0, 100] m",
-                )?;
-            }
+        for v in c.size_m {
             field(
-                "cloud.spacing_m",
-                c.spacing_m,
-                c.spacing_m.is_finite() && c.spacing_m >= 1e-4,
-                "≥ 0.1 mm",
-            )?;
-            non_negative("cloud.noise_m", c.noise_m)?;
-            field(
-                "cloud.noise_m",
-                c.noise_m,
-                c.noise_m <= (self.proxy.r2_m - self.proxy.r1_m) / 2.0,
-                "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy tolerates without punch-through",
-            )?;
-            // The proxy's sphere of radius (r1+r2)/2 must not fit through the holes of the grid,
-            // and noise widens the holes: a 5 mm grid with 0.5 mm noise let a 4 mm sphere through
-            // in 0.7 % of presses (measured). Keep a 3σ margin.
-            let rest = (self.proxy.r1_m + self.proxy.r2_m) / 2.0;
-            let max_spacing = std::f64::consts::SQRT_2 * (rest - 3.0 * c.noise_m);
-            field(
-                "cloud.spacing_m",
-                c.spacing_m,
-                c.spacing_m < max_spacing,
-                "below √2·((proxy.r1_m + proxy.r2_m)/2 − 3·cloud.noise_m), or the proxy slips between noisy points",
-            )?;
-            let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
-            field(
-                "cloud.spacing_m",
-                c.spacing_m,
-                points <= 5e6,
-                "at most 5 million points per frame",
-            )?;
-            field(
-                "cloud.dropout",
-                c.dropout,
-                (0.0..0.5).contains(&c.dropout),
-                "a fraction in [0, 0.5)",
-            )?;
-            field(
-                "cloud.rate_hz",
-                c.rate_hz,
-                c.rate_hz.is_finite() && c.rate_hz > 0.0 && c.rate_hz <= 1000.0,
-                "in (0, 1000] Hz",
+                "cloud.size_m",
+                c.size_m,
+                v.is_finite() && v > 0.0 && v <= 100.0,
+                "two sizes in (0, 100] m",
             )?;
         }
+        field(
+            "cloud.spacing_m",
+            c.spacing_m,
+            c.spacing_m.is_finite() && c.spacing_m >= 1e-4,
+            "≥ 0.1 mm",
+        )?;
+        non_negative("cloud.noise_m", c.noise_m)?;
+        field(
+            "cloud.noise_m",
+            c.noise_m,
+            c.noise_m <= (self.proxy.r2_m - self.proxy.r1_m) / 2.0,
+            "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy tolerates without punch-through",
+        )?;
+        // The proxy's sphere of radius (r1+r2)/2 must not fit through the holes of the grid,
+        // and noise widens the holes: a 5 mm grid with 0.5 mm noise let a 4 mm sphere through
+        // in 0.7 % of presses (measured). Keep a 3σ margin.
+        let rest = (self.proxy.r1_m + self.proxy.r2_m) / 2.0;
+        let max_spacing = std::f64::consts::SQRT_2 * (rest - 3.0 * c.noise_m);
+        field(
+            "cloud.spacing_m",
+            c.spacing_m,
+            c.spacing_m < max_spacing,
+            "below √2·((proxy.r1_m + proxy.r2_m)/2 − 3·cloud.noise_m), or the proxy slips between noisy points",
+        )?;
+        let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
+        field(
+            "cloud.spacing_m",
+            c.spacing_m,
+            points <= 5e6,
+            "at most 5 million points per frame",
+        )?;
+        field(
+            "cloud.dropout",
+            c.dropout,
+            (0.0..0.5).contains(&c.dropout),
+            "a fraction in [0, 0.5)",
+        )?;
+        field(
+            "cloud.rate_hz",
+            c.rate_hz,
+            c.rate_hz.is_finite() && c.rate_hz > 0.0 && c.rate_hz <= 1000.0,
+            "in (0, 1000] Hz",
+        )?;
+        Ok(())
+    }
+
+    /// `[model]`: structures the object can have, the filter's cut-off and the forgetting.
+    fn validate_model(&self) -> Result<(), SceneError> {
+        let e = &self.environment;
         let m = &self.model;
         field(
             "model.normal",
@@ -305,7 +339,6 @@ impl Scene {
             m.forgetting > 0.99 && m.forgetting <= 1.0,
             "in (0.99, 1]",
         )?;
-        self.validate_limits()?;
         Ok(())
     }
 }

@@ -253,26 +253,48 @@ fn with_source(e: &dyn std::error::Error) -> String {
     }
 }
 
+/// Opens `library` (shown as `shown`, chosen by `chosen_by`) with the dynamic loader.
+fn open_library(
+    library: &OsStr,
+    shown: &str,
+    chosen_by: &'static str,
+) -> Result<Library, SdkLoadError> {
+    // dlopen takes a name containing '/' as a path and searches nothing else.
+    let searched = if shown.contains('/') {
+        "that path only".to_owned()
+    } else {
+        SEARCH_PATH.to_owned()
+    };
+    // SAFETY: loading runs the library's initialisers. The file is the vendor SDK (or its test
+    // double) chosen by the operator; its initialisers are trusted like the SDK itself.
+    unsafe { Library::new(library) }.map_err(|e| SdkLoadError::Library {
+        library: shown.to_owned(),
+        chosen_by,
+        searched,
+        reason: with_source(&e),
+    })
+}
+
 impl Dhd {
     /// Loads the SDK (see the module docs for which file) and checks every required symbol.
     pub fn load(explicit: Option<&Path>, env: Option<OsString>) -> Result<Self, SdkLoadError> {
         let (library, chosen_by) = resolve_library(explicit, env);
         let shown = library.to_string_lossy().into_owned();
-        // dlopen takes a name containing '/' as a path and searches nothing else.
-        let searched = if shown.contains('/') {
-            "that path only".to_owned()
-        } else {
-            SEARCH_PATH.to_owned()
-        };
-        // SAFETY: loading runs the library's initialisers. The file is the vendor SDK (or its test
-        // double) chosen by the operator; its initialisers are trusted like the SDK itself.
-        let lib =
-            unsafe { Library::new(OsStr::new(&library)) }.map_err(|e| SdkLoadError::Library {
-                library: shown.clone(),
-                chosen_by,
-                searched,
-                reason: with_source(&e),
-            })?;
+        let lib = open_library(&library, &shown, chosen_by)?;
+        Self::look_up(lib, shown.clone()).map_err(|missing| SdkLoadError::MissingSymbols {
+            library: shown,
+            chosen_by,
+            missing: format!(
+                "symbol{} {}",
+                if missing.len() == 1 { "" } else { "s" },
+                missing.join(", ")
+            ),
+        })
+    }
+
+    /// Looks every required symbol up in `lib` (loaded from `path`); the names of those missing
+    /// if any is.
+    fn look_up(lib: Library, path: String) -> Result<Self, Vec<&'static str>> {
         let mut missing = Vec::new();
         let m = &mut missing;
         // SAFETY (all lookups below): each type is transcribed from the declaration of the same
@@ -336,17 +358,9 @@ impl Dhd {
                 get_button,
                 error_get_last_str,
                 _library: lib,
-                path: shown,
+                path,
             }),
-            _ => Err(SdkLoadError::MissingSymbols {
-                library: shown,
-                chosen_by,
-                missing: format!(
-                    "symbol{} {}",
-                    if missing.len() == 1 { "" } else { "s" },
-                    missing.join(", ")
-                ),
-            }),
+            _ => Err(missing),
         }
     }
 

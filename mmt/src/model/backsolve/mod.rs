@@ -1,0 +1,306 @@
+//! Back-solve θ → φ: regression coefficients to physical parameters (numerics notes §2).
+//!
+//! θ has one more linear-part coefficient than φ has unknowns, so an estimate generally lies off
+//! the model manifold, and every single closed form has a degenerate case (one of them exactly at
+//! the thesis's test set). The algorithm (notes §2.3):
+//!
+//! 1. `b2 = a/e` (leading coefficients; exact).
+//! 2. Candidate `k2` from every closed form: the (C)+(D) and (B)+(C) quadratics, the (B)+(D)
+//!    cubic, their common root, and the real negative roots `r` of `N(s) = a s³ + b s² + c s + d`
+//!    (`k2 = −r·b2`). Each polynomial was checked symbolically to have the true `k2` as a root.
+//! 3. For each candidate, `1/S` by a 1-D weighted least-squares fit to (B), (C), (D); then
+//!    `m = e S`, `k1 = S − k2`, `b1 = f S − b2`.
+//! 4. Score every candidate on all equations, keep the best, polish it with Levenberg–Marquardt
+//!    on log-parameters (positivity for free). `Fc` enters linearly and is solved in closed form.
+//! 5. Report the relative residual and the conditioning of `∂ log θ/∂ log φ`; flag a mass that
+//!    the identification band cannot see (`m → 0`) as not identifiable instead of inventing
+//!    numbers, and `k1 ≫ k2` (notes §2.5: condition 171, errors amplified 60×) as low confidence.
+
+mod problem;
+mod roots;
+
+use super::{KelvinVoigt, Physical, Structure, Theta, col};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use problem::Problem;
+use roots::{cubic_roots, quadratic_roots};
+
+/// Settings of the back-solve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BackSolveConfig {
+    /// Highest angular frequency the identification data carries [rad/s]: the state-variable
+    /// filter's cut-off. Default 2π·10 rad/s (the thesis's 10 Hz filter).
+    pub band_rad_s: f64,
+    /// Minimum sensitivity `|∂ log(F/X)/∂ log m|` at the band edge for the mass to count as
+    /// identifiable. Default 1e-2: if doubling the mass changes the force by less than 1 % in the
+    /// band, the data cannot tell the mass apart from zero.
+    pub min_mass_visibility: f64,
+    /// Condition number of the log-sensitivity `∂ log θ/∂ log φ` above which the estimate is
+    /// reported as low confidence. Default 15: well-conditioned sets measure 3.6–7 (typical 4.0,
+    /// thesis appendix-E set 7.0, exp-1 5.0); k1 = 5000 ≫ k2 = 300 measures 26 and turns 1 % noise
+    /// on θ into 7 % median error on φ.
+    pub max_condition: f64,
+    /// Levenberg–Marquardt iteration cap. Default 40.
+    pub max_iterations: usize,
+}
+
+impl Default for BackSolveConfig {
+    fn default() -> Self {
+        BackSolveConfig {
+            band_rad_s: 2.0 * std::f64::consts::PI * 10.0,
+            min_mass_visibility: 1e-2,
+            max_condition: 15.0,
+            max_iterations: 40,
+        }
+    }
+}
+
+/// The physical parameters recovered from θ.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Params {
+    /// Free space: nothing to render.
+    Free,
+    /// Kelvin–Voigt contact.
+    KelvinVoigt(KelvinVoigt),
+    /// The sliding flexible object (terms the structure leaves out are exactly 0).
+    SlidingMass(Physical),
+}
+
+/// How far the recovered parameters can be trusted.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Confidence {
+    /// Well conditioned.
+    Identified,
+    /// The parameters exist but some are nearly unobservable (e.g. `k1 ≫ k2`): relative errors
+    /// in θ are amplified up to `condition` times in φ.
+    Low {
+        /// Condition number of `∂ log θ/∂ log φ`.
+        condition: f64,
+    },
+}
+
+/// The result of a successful back-solve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BackSolved {
+    /// The recovered parameters.
+    pub params: Params,
+    /// Misfit of the linear-part coefficients relative to the size of their polynomial in the
+    /// identification band: for each coefficient of `N(s) = a s³ + b s² + c s + d` and
+    /// `D(s) = e s² + f s + 1`, `|θ̂ᵢ − hᵢ(φ)| ωᵏ / Σⱼ |θ̂ⱼ| ωʲ` maximised over
+    /// `ω ∈ {band/10, band/3, band}`, then RMS over the coefficients. It equals the relative error
+    /// of a coefficient that dominates its polynomial somewhere in the band, and ignores
+    /// coefficients that never matter there (e.g. `d` when `k1 ≈ 0`). 0 on the model manifold.
+    pub residual: f64,
+    /// Condition number of `∂ log θ/∂ log φ` at the solution (1 for Kelvin–Voigt).
+    pub condition: f64,
+    /// Whether the numbers can be trusted.
+    pub confidence: Confidence,
+}
+
+/// Why θ could not be turned into physical parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Error, Serialize, Deserialize)]
+pub enum BackSolveError {
+    /// A coefficient is NaN or infinite.
+    #[error("coefficient {name} is not finite ({value})")]
+    NonFinite {
+        /// Coefficient name (`a`..`h`).
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A coefficient that must be positive is not.
+    #[error("coefficient {name} = {value} must be positive")]
+    NotPositive {
+        /// Coefficient name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The mass is invisible in the identification band (`m → 0`): `b2 = a/e` is 0/0 and the
+    /// model is symmetric under (k1, b1) ↔ (k2, b2), so no unique answer exists.
+    #[error(
+        "mass not identifiable: |∂ log(F/X)/∂ log m| = {visibility:.3e} in the identification band (need ≥ {required:.1e})"
+    )]
+    MassNotIdentifiable {
+        /// `|∂ log(F/X)/∂ log m|` at the band edge.
+        visibility: f64,
+        /// The configured minimum.
+        required: f64,
+    },
+    /// No closed form gave a positive candidate.
+    #[error("no positive candidate for the contact stiffness k2")]
+    NoCandidate,
+}
+
+/// Recovers the physical parameters of `structure` from θ. `weights`, if given, are per
+/// coefficient inverse standard deviations (e.g. from the RLS covariance); otherwise relative
+/// weights `1/|θ̂ᵢ|` are used.
+pub fn back_solve(
+    structure: Structure,
+    theta: &Theta,
+    weights: Option<&[f64; col::COUNT]>,
+    config: &BackSolveConfig,
+) -> Result<BackSolved, BackSolveError> {
+    let cols = structure.columns();
+    for i in cols.indices() {
+        let v = theta.0[i];
+        if !v.is_finite() {
+            return Err(BackSolveError::NonFinite {
+                name: col::NAMES[i],
+                value: v,
+            });
+        }
+    }
+    match structure {
+        Structure::Free => Ok(BackSolved {
+            params: Params::Free,
+            residual: 0.0,
+            condition: 1.0,
+            confidence: Confidence::Identified,
+        }),
+        Structure::KelvinVoigt => Ok(BackSolved {
+            params: Params::KelvinVoigt(KelvinVoigt {
+                k_n_per_m: theta.0[col::D],
+                b_ns_per_m: theta.0[col::C],
+            }),
+            residual: 0.0,
+            condition: 1.0,
+            confidence: Confidence::Identified,
+        }),
+        Structure::SlidingMass {
+            ground_spring,
+            friction,
+        } => sliding_mass(theta, ground_spring, friction, weights, config),
+    }
+}
+
+fn sliding_mass(
+    theta: &Theta,
+    ground_spring: bool,
+    friction: bool,
+    weights: Option<&[f64; col::COUNT]>,
+    config: &BackSolveConfig,
+) -> Result<BackSolved, BackSolveError> {
+    let t = &theta.0;
+    let not_identifiable = |visibility| BackSolveError::MassNotIdentifiable {
+        visibility,
+        required: config.min_mass_visibility,
+    };
+    if t[col::A] == 0.0 && t[col::E] == 0.0 {
+        return Err(not_identifiable(0.0));
+    }
+    for i in [col::A, col::E, col::F] {
+        if t[i] <= 0.0 {
+            return Err(BackSolveError::NotPositive {
+                name: col::NAMES[i],
+                value: t[i],
+            });
+        }
+    }
+    let problem = Problem::new(theta, ground_spring, friction, weights, config.band_rad_s);
+    let best = candidates(t, ground_spring)
+        .filter_map(|k2| problem.start_from_k2(k2))
+        .map(|q| (problem.cost(&q), q))
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .ok_or(BackSolveError::NoCandidate)?
+        .1;
+    let q = problem.levenberg_marquardt(best, config.max_iterations);
+    let physical = problem.physical(&q);
+    let visibility = mass_visibility(&physical, config.band_rad_s);
+    if !(visibility >= config.min_mass_visibility) {
+        return Err(not_identifiable(visibility));
+    }
+    let condition = problem.condition(&q);
+    let confidence = if condition > config.max_condition {
+        Confidence::Low { condition }
+    } else {
+        Confidence::Identified
+    };
+    Ok(BackSolved {
+        params: Params::SlidingMass(physical),
+        residual: problem.relative_residual(&physical),
+        condition,
+        confidence,
+    })
+}
+
+/// `|∂ log(F/X)/∂ log m| = |m (iω)² Z2 / (Z1 (Z1 + Z2))|`, the largest over the band.
+fn mass_visibility(p: &Physical, band_rad_s: f64) -> f64 {
+    [0.25, 0.5, 1.0]
+        .iter()
+        .map(|frac| {
+            let s = num_complex::Complex64::new(0.0, frac * band_rad_s);
+            let z1 = s * s * p.mass_kg + s * p.b_ground_ns_per_m + p.k_ground_n_per_m;
+            let z2 = s * p.b_contact_ns_per_m + p.k_contact_n_per_m;
+            (s * s * p.mass_kg * z2 / (z1 * (z1 + z2))).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Candidate contact stiffnesses from every closed form (notes §2.2). Non-positive and non-finite
+/// values are filtered out later.
+fn candidates(t: &[f64; col::COUNT], ground_spring: bool) -> impl Iterator<Item = f64> {
+    let (a, b, c, d, e, f) = (
+        t[col::A],
+        t[col::B],
+        t[col::C],
+        t[col::D],
+        t[col::E],
+        t[col::F],
+    );
+    let b2 = a / e;
+    let mut out = [f64::NAN; 12];
+    if ground_spring {
+        let beta = b - f * b2;
+        let gamma = c - b2;
+        let mut n = 0;
+        let mut push = |v: f64, out: &mut [f64; 12]| {
+            if n < out.len() {
+                out[n] = v;
+                n += 1;
+            }
+        };
+        // (C)+(D): f u² − (b2 + c) u + 2 b2 d = 0
+        for r in quadratic_roots(f, -(b2 + c), 2.0 * b2 * d)
+            .into_iter()
+            .flatten()
+        {
+            push(r, &mut out);
+        }
+        // (B)+(C): 2e u² − (b2 f + 2β) u + b2 γ = 0
+        for r in quadratic_roots(2.0 * e, -(b2 * f + 2.0 * beta), b2 * gamma)
+            .into_iter()
+            .flatten()
+        {
+            push(r, &mut out);
+        }
+        // (B)+(D): e u³ − β u² − b2² u + b2² d = 0
+        for r in cubic_roots(e, -beta, -b2 * b2, b2 * b2 * d)
+            .into_iter()
+            .flatten()
+        {
+            push(r, &mut out);
+        }
+        // Common root of the two quadratics (0/0 when b1² = b2² + 4 k1 m).
+        push(
+            b2 * (f * c - f * b2 - 4.0 * e * d) / (2.0 * f * b - f * f * b2 - 2.0 * e * (b2 + c)),
+            &mut out,
+        );
+        // Z2 = b2 s + k2 divides N(s): its real negative roots r give k2 = −r·b2.
+        for r in cubic_roots(a, b, c, d).into_iter().flatten() {
+            push(-r * b2, &mut out);
+        }
+    } else {
+        // k1 = 0: c = b1 and f = (b1 + b2)/k2, so k2 = (c + b2)/f; (B) gives e u² − b u + c b2 = 0.
+        out[0] = (c + b2) / f;
+        let [r0, r1] = quadratic_roots(e, -b, c * b2);
+        out[1] = r0.unwrap_or(f64::NAN);
+        out[2] = r1.unwrap_or(f64::NAN);
+    }
+    out.into_iter().filter(|v| v.is_finite() && *v > 0.0)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,332 @@
+//! The weighted least-squares problem of the back-solve in log-parameters: a candidate's start
+//! point, the Levenberg–Marquardt polish, the conditioning of `∂ log θ/∂ log φ` and the
+//! relative residual (numerics notes §2.3, steps 3–5).
+
+use crate::model::{Physical, Theta, col};
+
+/// Number of linear-part unknowns: m, b1, k2, b2 and (with a ground spring) k1.
+const MAX_P: usize = 5;
+
+/// The weighted least-squares problem in log-parameters `q = log [m, b1, k2, b2, (k1)]`.
+pub(super) struct Problem {
+    theta: [f64; col::COUNT],
+    weight: [f64; col::COUNT],
+    /// Linear-part columns in the fit.
+    rows: [usize; 6],
+    n_rows: usize,
+    p: usize,
+    ground_spring: bool,
+    friction: bool,
+    band_rad_s: f64,
+}
+
+impl Problem {
+    pub(super) fn new(
+        theta: &Theta,
+        ground_spring: bool,
+        friction: bool,
+        weights: Option<&[f64; col::COUNT]>,
+        band_rad_s: f64,
+    ) -> Self {
+        let t = theta.0;
+        let mut weight = [0.0; col::COUNT];
+        for i in 0..col::COUNT {
+            // Relative weights; a coefficient below 1e-6 of its polynomial at the band edge is
+            // floored there, so an exact zero (k1 = 0 in a full model) gets a large, finite weight.
+            let floor = 1e-6 * band_scale(&t, i, band_rad_s);
+            weight[i] = match weights {
+                Some(w) if w[i].is_finite() && w[i] > 0.0 => w[i],
+                _ => 1.0 / t[i].abs().max(floor).max(f64::MIN_POSITIVE),
+            };
+        }
+        let (rows, n_rows) = if ground_spring {
+            ([col::A, col::B, col::C, col::D, col::E, col::F], 6)
+        } else {
+            ([col::A, col::B, col::C, col::E, col::F, 0], 5)
+        };
+        Problem {
+            theta: t,
+            weight,
+            rows,
+            n_rows,
+            p: if ground_spring { 5 } else { 4 },
+            ground_spring,
+            friction,
+            band_rad_s,
+        }
+    }
+
+    /// Completes a candidate `k2` into a full start point (notes §2.2: `1/S` by LS over (B), (C),
+    /// (D)), or `None` if it is not physical.
+    pub(super) fn start_from_k2(&self, u: f64) -> Option<[f64; MAX_P]> {
+        let t = &self.theta;
+        let (b, c, d, e, f) = (t[col::B], t[col::C], t[col::D], t[col::E], t[col::F]);
+        let b2 = t[col::A] / e;
+        let s = if self.ground_spring {
+            // α_i = β_i·w with weights 1/|θ_i|.
+            let eqs = [
+                (e * u - (b - f * b2), b2 * b2, self.weight[col::B]),
+                (f * u - (c - b2), 2.0 * b2 * u, self.weight[col::C]),
+                (u - d, u * u, self.weight[col::D]),
+            ];
+            let (num, den) = eqs.iter().fold((0.0, 0.0), |(n, dn), (al, be, w)| {
+                (n + w * w * al * be, dn + w * w * be * be)
+            });
+            let w = num / den;
+            if !(w.is_finite() && w > 0.0) {
+                return None;
+            }
+            (1.0 / w).max(u)
+        } else {
+            u
+        };
+        let floor = |v: f64, scale: f64| v.max(1e-9 * scale);
+        let m = floor(e * s, e * s.abs().max(1.0));
+        let b1 = floor(f * s - b2, b2);
+        let k1 = floor(s - u, u);
+        let q = [m.ln(), b1.ln(), u.ln(), b2.ln(), k1.ln()];
+        q.iter().all(|v| v.is_finite()).then_some(q)
+    }
+
+    pub(super) fn physical(&self, q: &[f64; MAX_P]) -> Physical {
+        let mut p = Physical {
+            mass_kg: q[0].exp(),
+            b_ground_ns_per_m: q[1].exp(),
+            k_contact_n_per_m: q[2].exp(),
+            b_contact_ns_per_m: q[3].exp(),
+            k_ground_n_per_m: if self.ground_spring { q[4].exp() } else { 0.0 },
+            coulomb_n: 0.0,
+        };
+        if self.friction {
+            p.coulomb_n = self.coulomb(&p);
+        }
+        p
+    }
+
+    /// `Fc` by weighted LS from `g = k2 Fc/S`, `h = b2 Fc/S`, clamped at 0.
+    fn coulomb(&self, p: &Physical) -> f64 {
+        let s = p.stiffness_sum();
+        let (wg, wh) = (self.weight[col::G], self.weight[col::H]);
+        let (xg, xh) = (p.k_contact_n_per_m / s, p.b_contact_ns_per_m / s);
+        let num = wg * wg * xg * self.theta[col::G] + wh * wh * xh * self.theta[col::H];
+        let den = wg * wg * xg * xg + wh * wh * xh * xh;
+        (num / den).max(0.0)
+    }
+
+    fn residuals(&self, q: &[f64; MAX_P], out: &mut [f64; 6]) {
+        let mut p = self.physical(q);
+        p.coulomb_n = 0.0;
+        let h = p
+            .theta()
+            .map(|t| t.0)
+            .unwrap_or([f64::INFINITY; col::COUNT]);
+        for (k, &i) in self.rows[..self.n_rows].iter().enumerate() {
+            out[k] = self.weight[i] * (self.theta[i] - h[i]);
+        }
+    }
+
+    pub(super) fn cost(&self, q: &[f64; MAX_P]) -> f64 {
+        let mut r = [0.0; 6];
+        self.residuals(q, &mut r);
+        let c: f64 = r[..self.n_rows].iter().map(|v| v * v).sum();
+        if c.is_finite() { c } else { f64::INFINITY }
+    }
+
+    /// Levenberg–Marquardt with a central-difference Jacobian in log space (the residual is a
+    /// handful of flops, so differences cost nothing and cannot get the algebra wrong).
+    pub(super) fn levenberg_marquardt(
+        &self,
+        mut q: [f64; MAX_P],
+        iterations: usize,
+    ) -> [f64; MAX_P] {
+        let (n, p) = (self.n_rows, self.p);
+        let mut cost = self.cost(&q);
+        let mut mu = 1e-3;
+        let mut r = [0.0; 6];
+        for _ in 0..iterations {
+            let jac = self.jacobian(&q);
+            self.residuals(&q, &mut r);
+            // Normal equations (JᵀJ + μ diag JᵀJ) δ = −Jᵀr.
+            let mut jtj = [[0.0; MAX_P]; MAX_P];
+            let mut jtr = [0.0; MAX_P];
+            for i in 0..p {
+                for k in 0..n {
+                    jtr[i] += jac[k][i] * r[k];
+                }
+                for j in 0..p {
+                    jtj[i][j] = (0..n).map(|k| jac[k][i] * jac[k][j]).sum();
+                }
+            }
+            let mut improved = false;
+            for _ in 0..12 {
+                let mut lhs = jtj;
+                for (i, row) in lhs.iter_mut().enumerate().take(p) {
+                    row[i] += mu * row[i].max(1e-12);
+                }
+                let Some(step) = cholesky_solve(&lhs, &jtr, p) else {
+                    mu *= 10.0;
+                    continue;
+                };
+                let mut trial = q;
+                for i in 0..p {
+                    trial[i] -= step[i].clamp(-2.0, 2.0);
+                }
+                let trial_cost = self.cost(&trial);
+                if trial_cost < cost {
+                    let gain = cost - trial_cost;
+                    q = trial;
+                    cost = trial_cost;
+                    mu = (mu * 0.3).max(1e-12);
+                    improved = gain > 1e-15 * (1.0 + cost);
+                    break;
+                }
+                mu *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        q
+    }
+
+    /// `∂r/∂q` by central differences.
+    fn jacobian(&self, q: &[f64; MAX_P]) -> [[f64; MAX_P]; 6] {
+        let mut jac = [[0.0; MAX_P]; 6];
+        let step = 1e-6;
+        let (mut rp, mut rm) = ([0.0; 6], [0.0; 6]);
+        for j in 0..self.p {
+            let (mut qp, mut qm) = (*q, *q);
+            qp[j] += step;
+            qm[j] -= step;
+            self.residuals(&qp, &mut rp);
+            self.residuals(&qm, &mut rm);
+            for k in 0..self.n_rows {
+                jac[k][j] = (rp[k] - rm[k]) / (2.0 * step);
+            }
+        }
+        jac
+    }
+
+    /// Condition number of `∂ log θ/∂ log φ` (rows: fitted coefficients; columns: parameters).
+    /// Fixed-size matrices (the two shapes a problem has: 5 × 4, 6 × 5), so that the telerobot's
+    /// real-time loop, which back-solves, allocates nothing.
+    pub(super) fn condition(&self, q: &[f64; MAX_P]) -> f64 {
+        let base = self.model_theta(q);
+        let step = 1e-6;
+        let mut m = [[0.0; MAX_P]; 6];
+        for j in 0..self.p {
+            let (mut qp, mut qm) = (*q, *q);
+            qp[j] += step;
+            qm[j] -= step;
+            let (tp, tm) = (self.model_theta(&qp), self.model_theta(&qm));
+            for (k, &i) in self.rows[..self.n_rows].iter().enumerate() {
+                m[k][j] = (tp[i].ln() - tm[i].ln()) / (2.0 * step);
+            }
+        }
+        if !base.iter().all(|v| v.is_finite()) {
+            return f64::INFINITY;
+        }
+        let extremes = |sv: &[f64]| {
+            sv.iter().fold((0.0f64, f64::INFINITY), |(mx, mn), &s| {
+                (mx.max(s), mn.min(s))
+            })
+        };
+        let (max, min) = match (self.n_rows, self.p) {
+            (5, 4) => extremes(
+                nalgebra::SMatrix::<f64, 5, 4>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
+            _ => extremes(
+                nalgebra::SMatrix::<f64, 6, 5>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
+        };
+        if min > 0.0 { max / min } else { f64::INFINITY }
+    }
+
+    fn model_theta(&self, q: &[f64; MAX_P]) -> [f64; col::COUNT] {
+        self.physical(q)
+            .theta()
+            .map(|t| t.0)
+            .unwrap_or([f64::NAN; col::COUNT])
+    }
+
+    pub(super) fn relative_residual(&self, p: &Physical) -> f64 {
+        let Some(h) = p.theta() else {
+            return f64::INFINITY;
+        };
+        let rows = &self.rows[..self.n_rows];
+        let sum: f64 = rows
+            .iter()
+            .map(|&i| {
+                [0.1, 1.0 / 3.0, 1.0]
+                    .iter()
+                    .map(|frac| {
+                        let w = frac * self.band_rad_s;
+                        (self.theta[i] - h.0[i]).abs() * w.powi(ORDER[i])
+                            / band_poly(&self.theta, i, w)
+                    })
+                    .fold(0.0, f64::max)
+                    .powi(2)
+            })
+            .sum();
+        (sum / rows.len() as f64).sqrt()
+    }
+}
+
+/// Power of `s` each coefficient multiplies in its polynomial (`N`, `D` or the friction term).
+const ORDER: [i32; col::COUNT] = [3, 2, 1, 0, 2, 1, 0, 1];
+
+/// `Σⱼ |θⱼ| ωʲ` over the polynomial that coefficient `i` belongs to (`D` includes its constant 1).
+fn band_poly(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
+    let members: &[usize] = match i {
+        col::A | col::B | col::C | col::D => &[col::A, col::B, col::C, col::D],
+        col::E | col::F => &[col::E, col::F],
+        _ => &[col::G, col::H],
+    };
+    let constant = if matches!(i, col::E | col::F) {
+        1.0
+    } else {
+        0.0
+    };
+    members
+        .iter()
+        .map(|&j| t[j].abs() * w.powi(ORDER[j]))
+        .sum::<f64>()
+        + constant
+}
+
+/// The size coefficient `i` would need to contribute as much as its whole polynomial at `w`.
+fn band_scale(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
+    band_poly(t, i, w) / w.powi(ORDER[i])
+}
+
+/// Solves `A x = b` for the leading `p×p` block of a symmetric positive-definite `A`.
+fn cholesky_solve(a: &[[f64; MAX_P]; MAX_P], b: &[f64; MAX_P], p: usize) -> Option<[f64; MAX_P]> {
+    let mut l = [[0.0; MAX_P]; MAX_P];
+    for i in 0..p {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                let d = a[i][i] - s;
+                if !(d > 0.0 && d.is_finite()) {
+                    return None;
+                }
+                l[i][i] = d.sqrt();
+            } else {
+                l[i][j] = (a[i][j] - s) / l[j][j];
+            }
+        }
+    }
+    let mut y = [0.0; MAX_P];
+    for i in 0..p {
+        y[i] = (b[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
+    }
+    let mut x = [0.0; MAX_P];
+    for i in (0..p).rev() {
+        x[i] = (y[i] - (i + 1..p).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}

@@ -1,0 +1,238 @@
+//! The networked run's table: `mmt experiment`'s, then the rows only a real link has — the
+//! measured delay, the loop's timing, the link's counters and latencies, the safety layer's
+//! trips — each section written by its own step.
+
+use std::fmt::Write as _;
+
+use mmt::render::RendererStats;
+use rt::{Summary, TimingReport};
+use transport::LinkReport;
+
+use super::{NetworkedReport, PeerFigures};
+
+/// The stdout table: `mmt experiment`'s, then the networked figures (with `peer`'s rows where a
+/// run has them).
+pub fn table(r: &NetworkedReport, peer: &PeerFigures) -> String {
+    let mut out = metrics::table(&r.experiment);
+    let _ = write_extras(&mut out, r, peer);
+    out
+}
+
+fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> std::fmt::Result {
+    // Without the scene's truth, the parameters as received.
+    if let Some(p) = r
+        .parameters_received
+        .filter(|_| r.experiment.parameters.is_empty())
+    {
+        for (axes, set) in [("normal", p.normal), ("tangential", p.tangential)] {
+            if let Some(set) = set {
+                writeln!(out, "parameters received, {axes}: {:.4?}", set.terms)?;
+            }
+        }
+    }
+    let mut rows = Rows::default();
+    delay_rows(&mut rows, r);
+    loop_rows(
+        &mut rows,
+        "haptic loop period p50 / p99 / max",
+        &r.loop_timing,
+    );
+    link_rows(&mut rows, &r.link, peer);
+    latency_rows(&mut rows, r, peer);
+    rows.row("sessions", r.sessions.to_string());
+    if let Some(t) = &peer.telerobot_timing {
+        rows.row("telerobot loop period p50 / p99 / max", us(&t.period));
+        rows.row("  ticks, overruns, skipped", count(t));
+    }
+    if let Some(l) = &peer.shim_lateness {
+        rows.row("netem release lateness p50 / p99 / max", us(l));
+    }
+    safety_rows(&mut rows, r);
+    writeln!(out, "network")?;
+    for (name, value) in rows.0 {
+        writeln!(out, "{name:<46} {value:>14}")?;
+    }
+    Ok(())
+}
+
+/// The rows of the networked section, in order: name, value.
+#[derive(Default)]
+struct Rows(Vec<(String, String)>);
+
+impl Rows {
+    fn row(&mut self, name: &str, value: String) {
+        self.0.push((name.to_owned(), value));
+    }
+}
+
+fn opt(v: Option<f64>, unit: &str) -> String {
+    v.map_or("—".to_string(), |v| format!("{v:.2} {unit}"))
+}
+
+/// p50 / p99 / max of a distribution in µs.
+fn us(q: &Summary) -> String {
+    format!("{:.1} / {:.1} / {:.0} µs", q.p50_us, q.p99_us, q.max_us)
+}
+
+/// p50 / p99 / max of a distribution in ms.
+fn ms(q: &Summary) -> String {
+    format!(
+        "{:.2} / {:.2} / {:.2} ms",
+        q.p50_us / 1e3,
+        q.p99_us / 1e3,
+        q.max_us / 1e3
+    )
+}
+
+fn count(t: &TimingReport) -> String {
+    format!("{} / {} / {}", t.ticks, t.overruns, t.skipped_ticks)
+}
+
+/// What quinn itself did with the datagrams it was handed: every one on the wire (none held
+/// back by a congestion window or pacing), no congestion events.
+fn quinn(l: &LinkReport) -> String {
+    format!(
+        "{} of {} / {} / {}",
+        l.quinn_datagrams_transmitted, l.sent, l.quinn_congestion_events, l.quinn_lost_packets
+    )
+}
+
+/// The measured delay, the set one, and how well the signals matched.
+fn delay_rows(rows: &mut Rows, r: &NetworkedReport) {
+    rows.row(
+        "measured_delay_ms (rendered leads measured)",
+        opt(r.measured_delay_ms, "ms"),
+    );
+    if let Some(d) = r.set_delay_ms {
+        rows.row("  set one-way delay", format!("{d:.2} ms"));
+    }
+    if let Some(e) = &r.delay_estimate {
+        rows.row("  peak correlation", format!("{:.4}", e.peak_correlation));
+    }
+}
+
+/// A loop's period, lateness, work and tick counts, under the heading `period`.
+fn loop_rows(rows: &mut Rows, period: &str, t: &TimingReport) {
+    rows.row(period, us(&t.period));
+    rows.row("  lateness p50 / p99 / max", us(&t.lateness));
+    rows.row("  work p50 / p99 / max", us(&t.work));
+    rows.row("  ticks, overruns, skipped", count(t));
+}
+
+/// The link's counters (quinn's for both ends where known), its longest gap, RTT and clock
+/// offset.
+fn link_rows(rows: &mut Rows, l: &LinkReport, peer: &PeerFigures) {
+    rows.row(
+        "datagrams sent / received",
+        format!("{} / {}", l.sent, l.received),
+    );
+    rows.row(
+        "  late / lost / duplicate / garbage",
+        format!("{} / {} / {} / {}", l.late, l.lost, l.duplicates, l.garbage),
+    );
+    rows.row(
+        "  quinn, operator: on the wire / congestion events / lost packets",
+        quinn(l),
+    );
+    if let Some(l) = &peer.telerobot_link {
+        rows.row(
+            "  quinn, telerobot: on the wire / congestion events / lost packets",
+            quinn(l),
+        );
+    }
+    rows.row(
+        "  longest gap between accepted datagrams",
+        format!("{:.1} ms", l.max_gap_ms),
+    );
+    rows.row(
+        "RTT smoothed / min",
+        format!("{} / {}", opt(l.rtt_ms, "ms"), opt(l.rtt_min_ms, "ms")),
+    );
+    rows.row(
+        "clock offset (telerobot − operator)",
+        opt(l.clock_offset_ms, "ms"),
+    );
+}
+
+/// One-way latencies, and beyond the set delay (what the stack adds: queueing, scheduling).
+fn latency_rows(rows: &mut Rows, r: &NetworkedReport, peer: &PeerFigures) {
+    let mut latency = |name: &str, l: &Summary| {
+        rows.row(name, ms(l));
+        if let Some(d) = r.set_delay_ms {
+            rows.row(
+                "  beyond the set delay p50 / p99 / max",
+                us(&l.shifted(-d * 1e3)),
+            );
+        }
+    };
+    if let Some(l) = &peer.uplink_latency {
+        latency("uplink: command sample → telerobot receipt", l);
+    }
+    latency(
+        "downlink: measurement send → operator receipt",
+        &r.downlink_latency,
+    );
+}
+
+/// The renderers' gate and clipping counts, the safety layer's episodes, the device's state
+/// and the passivity layer's energy.
+fn safety_rows(rows: &mut Rows, r: &NetworkedReport) {
+    let sum = |f: fn(&RendererStats) -> u64| r.renderers.iter().map(f).sum::<u64>();
+    rows.row(
+        "renderer ticks: unresolved (gate) / clipped",
+        format!(
+            "{} / {}",
+            sum(|s| s.unresolved_ticks),
+            sum(|s| s.clipped_ticks)
+        ),
+    );
+    let s = &r.safety;
+    rows.row(
+        "safety episodes: watchdog / rate / max / workspace",
+        format!(
+            "{} / {} / {} / {}",
+            s.watchdog_fading.episodes,
+            s.rate_limited.episodes,
+            s.saturated.episodes,
+            s.workspace.episodes
+        ),
+    );
+    rows.row(
+        "  loop overrun / stale parameters / clutch",
+        format!(
+            "{} / {} / {}",
+            s.loop_overrun.episodes, s.stale_params.episodes, s.clutch.episodes
+        ),
+    );
+    rows.row(
+        "  non-finite force / position / velocity",
+        format!(
+            "{} / {} / {}",
+            s.non_finite_force.episodes,
+            s.non_finite_position.episodes,
+            s.non_finite_velocity.episodes
+        ),
+    );
+    rows.row(
+        "  position-scale changes refused",
+        s.scale_rejections.to_string(),
+    );
+    rows.row(
+        "device state, faults",
+        format!("{:?} / {}", r.device_state, r.device_faults),
+    );
+    if let Some(f) = &r.device_fault {
+        rows.row("  fault", f.clone());
+    }
+    let p = &s.passivity;
+    rows.row(
+        "passivity: min energy / dissipated / ticks",
+        format!(
+            "{:.2} / {:.2} mJ / {} ({} capped)",
+            p.min_energy_j * 1e3,
+            p.dissipated_j * 1e3,
+            p.controlling.ticks,
+            p.capped.ticks
+        ),
+    );
+}
