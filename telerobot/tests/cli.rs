@@ -228,3 +228,49 @@ fn bad_robot_options_are_named() {
         .to_string();
     assert!(e.contains("ur"), "{e}");
 }
+
+/// Log lines written to a pipe or a file carry no colour escapes (they did, whatever stderr was).
+#[test]
+fn logs_to_a_pipe_are_plain_text() {
+    use std::io::{BufRead, BufReader, Read};
+    use std::process::{Command as Process, Stdio};
+    let dir = temp_dir("plain-logs");
+    let Command::GenCert(g) = parse(&["telerobot", "gen-cert", "--out", dir.to_str().unwrap()])
+    else {
+        panic!()
+    };
+    gen_cert(&g, &mut Vec::new()).unwrap();
+    let crt = dir.join("telerobot.crt");
+    let mut child = Process::new(env!("CARGO_BIN_EXE_telerobot"))
+        .args(["run", "--listen", "127.0.0.1:0", "--identity"])
+        .arg(&dir)
+        .arg("--trust")
+        .arg(&crt)
+        .env("RUST_LOG", "info")
+        .env_remove("NO_COLOR")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut log = String::new();
+    while !log.contains("telerobot running") {
+        let mut line = String::new();
+        if stderr.read_line(&mut line).unwrap() == 0 {
+            break;
+        }
+        log.push_str(&line);
+    }
+    let _ = Process::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    stderr.read_to_string(&mut log).unwrap();
+    let status = child.wait().unwrap();
+    assert!(log.contains("telerobot running"), "{log}");
+    assert!(
+        !log.contains('\u{1b}'),
+        "colour escapes in a piped log:\n{log:?}"
+    );
+    assert!(status.success(), "{status:?}\n{log}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

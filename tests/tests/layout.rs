@@ -130,6 +130,26 @@ fn the_core_the_nodes_and_the_protocol_depend_on_no_runtime_network_plot_cli_or_
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
 
+/// The test kit is a dev-dependency only: no library or binary of the workspace links it.
+#[test]
+fn no_crate_depends_on_the_test_kit_outside_its_tests() {
+    let meta = metadata();
+    let packages = meta["packages"].as_array().unwrap();
+    let members = meta["workspace_members"].as_array().unwrap();
+    let mut problems = Vec::new();
+    for package in packages.iter().filter(|p| members.contains(&p["id"])) {
+        for dep in package["dependencies"].as_array().unwrap() {
+            if dep["name"] == "testkit" && dep["kind"] != "dev" {
+                problems.push(package["name"].as_str().unwrap().to_owned());
+            }
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "testkit as a normal or build dependency of {problems:?}"
+    );
+}
+
 /// Every `.rs` file of the workspace's libraries and binaries: `src/` of each member, without
 /// test modules in their own files (`tests.rs`, `tests/`), benches, examples or the fuzz crate.
 fn sources() -> Vec<PathBuf> {

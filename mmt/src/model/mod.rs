@@ -96,16 +96,7 @@ impl Physical {
 
     /// Every field finite.
     pub fn is_finite(&self) -> bool {
-        [
-            self.mass_kg,
-            self.k_ground_n_per_m,
-            self.b_ground_ns_per_m,
-            self.k_contact_n_per_m,
-            self.b_contact_ns_per_m,
-            self.coulomb_n,
-        ]
-        .iter()
-        .all(|v| v.is_finite())
+        self.fields().iter().all(|v| v.is_finite())
     }
 
     /// The forward map φ → θ (thesis eq. 30, plus `h = b2·Fc/S`). Returns `None` when `S = 0`,
@@ -115,7 +106,7 @@ impl Physical {
         if s == 0.0 || !s.is_finite() {
             return None;
         }
-        let (m, k1, b1, k2, b2, fc) = self.tuple();
+        let [m, k1, b1, k2, b2, fc] = self.fields();
         Some(Theta([
             m * b2 / s,
             (m * k2 + b1 * b2) / s,
@@ -133,7 +124,7 @@ impl Physical {
     /// (friction left out: it is not linear).
     pub fn force_per_displacement(&self, omega_rad_s: f64) -> Complex64 {
         let s = Complex64::new(0.0, omega_rad_s);
-        let (m, k1, b1, k2, b2, _) = self.tuple();
+        let [m, k1, b1, k2, b2, _] = self.fields();
         let z1 = s * s * m + s * b1 + k1;
         let z2 = s * b2 + k2;
         -(z1 * z2) / (z1 + z2)
@@ -149,15 +140,16 @@ impl Physical {
         (self.stiffness_sum() / self.mass_kg).sqrt()
     }
 
-    fn tuple(&self) -> (f64, f64, f64, f64, f64, f64) {
-        (
+    /// `[m, k1, b1, k2, b2, Fc]`.
+    fn fields(&self) -> [f64; 6] {
+        [
             self.mass_kg,
             self.k_ground_n_per_m,
             self.b_ground_ns_per_m,
             self.k_contact_n_per_m,
             self.b_contact_ns_per_m,
             self.coulomb_n,
-        )
+        ]
     }
 }
 

@@ -186,6 +186,27 @@ pub enum ShimError {
     /// A thread panicked (a bug).
     #[error("the {0} thread panicked")]
     Panicked(&'static str),
+    /// `forward` is the shim's own front socket: every packet would loop through the shim
+    /// forever.
+    #[error(
+        "--forward {forward} is the shim's own --listen socket {listen}: packets would loop \
+         through the shim; expected the server's address"
+    )]
+    ForwardsToItself {
+        /// The front socket's bound address.
+        listen: SocketAddr,
+        /// The forward address given.
+        forward: SocketAddr,
+    },
+}
+
+/// Whether packets sent to `forward` would arrive at the front socket bound at `front`
+/// (the same address, or the same port on loopback behind an unspecified bind).
+fn forwards_to_itself(front: SocketAddr, forward: SocketAddr) -> bool {
+    front == forward
+        || (front.port() == forward.port()
+            && (front.ip().is_unspecified() || front.ip().is_loopback())
+            && (forward.ip().is_loopback() || forward.ip().is_unspecified()))
 }
 
 /// State shared by the handle and the threads.
@@ -243,6 +264,12 @@ pub fn start(config: ShimConfig) -> Result<ShimHandle, ShimError> {
     }
     let sockets = worker::Sockets::open(config.listen, config.forward, POLL)?;
     let local_addr = sockets.front_addr;
+    if forwards_to_itself(local_addr, config.forward) {
+        return Err(ShimError::ForwardsToItself {
+            listen: local_addr,
+            forward: config.forward,
+        });
+    }
     let writer = match &config.log_path {
         Some(path) => Some(log::create(path).map_err(|source| ShimError::Log {
             path: path.clone(),
