@@ -186,14 +186,14 @@ fn main() {
     }
     let g = &t.last.guard;
     println!(
-        "command guard: {} ticks, {} without a state; stale {} / workspace {} / step {} / speed {} \
-         ticks",
-        g.ticks,
+        "motion guard: {} ticks without a state; stale {} / workspace {} / step {} / speed {} \
+         ticks; {} faults",
         g.no_state_ticks,
         g.stale_state.ticks,
         g.workspace.ticks,
-        g.max_step.ticks,
-        g.max_speed.ticks
+        g.step.ticks,
+        g.speed.ticks,
+        g.faults
     );
     println!(
         "test arm: {} ticks, {} targets, {} states, {} camera frames; loop p99 {:.0} µs, max {:.0} \

@@ -3,7 +3,6 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Parser;
 use operator::cli::RtArgs;
 use rt::Shutdown;
@@ -59,6 +58,12 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         ..DemoConfig::default()
     };
     config.validate()?;
+    // Checked before the run: a path that cannot be written must not cost the session.
+    let dir = rt::OutDir::prepare(&args.out)?;
+    let config = DemoConfig {
+        stream_to: Some(dir.clone()),
+        ..config
+    };
     if !args.json {
         writeln!(
             out,
@@ -68,11 +73,8 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         out.flush()?;
     }
     let outcome = run(&config, shutdown)?;
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     for (name, bytes) in files(&outcome.report, &outcome.series)? {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        dir.write_atomic(&name, &bytes)?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
@@ -81,7 +83,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         writeln!(
             out,
             "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
-            dir.display()
+            dir.path().display()
         )?;
     }
     Ok(())
@@ -113,5 +115,23 @@ mod tests {
         }
         let e = Cli::try_parse_from(["demo", "--realtime-priority", "100"]).unwrap_err();
         assert!(e.to_string().contains("--realtime-priority"), "{e}");
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("demo-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let args = Cli::try_parse_from(["demo", "--out", file.to_str().unwrap()]).unwrap();
+        let mut printed = Vec::new();
+        let started = std::time::Instant::now();
+        let e = run_cmd(&args, Shutdown::new(), &mut printed).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(printed.is_empty(), "the banner came before the check");
+        assert!(started.elapsed().as_secs() < 5, "the demo ran first");
+        std::fs::remove_file(&file).unwrap();
     }
 }

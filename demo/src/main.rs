@@ -26,7 +26,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("demo: {e:#}");
+            eprintln!("demo: {}", rt::exit::message(e.as_ref()));
             ExitCode::FAILURE
         }
     }

@@ -48,6 +48,8 @@ pub struct DemoConfig {
     /// The telerobot's robot. Default its simulated world; `ros2` drives a robot on a ROS 2
     /// graph (the test arm, in the ROS 2 figures).
     pub robot: telerobot::robot::RobotConfig,
+    /// Where the operator streams its records as the run goes (the demo's `--out`).
+    pub stream_to: Option<rt::OutDir>,
 }
 
 impl Default for DemoConfig {
@@ -61,6 +63,7 @@ impl Default for DemoConfig {
             via_shim: true,
             scene: Scene::exp1(),
             robot: telerobot::robot::RobotConfig::Sim,
+            stream_to: None,
         }
     }
 }
@@ -167,7 +170,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         )],
         tuning: tuning.clone(),
         start_m: telerobot::RunConfig::default_start(&scene),
-        limits: scene.command_limits(),
+        limits: scene.motion_limits(),
         robot: config.robot.clone(),
         scene: scene.clone(),
         seed: config.seed,
@@ -271,6 +274,7 @@ fn operator_config(
             seed: config.seed,
             delay_ms: config.delay_ms,
         }),
+        stream_to: config.stream_to.clone(),
     }
 }
 

@@ -2,7 +2,8 @@
 
 use lab::cli;
 
-use anyhow::Result;
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -34,8 +35,10 @@ enum Command {
     WorkPrecision(cli::work_precision::WorkPrecisionArgs),
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
+/// A user's mistake prints one line (the error and its causes) and exits 1, with no backtrace
+/// whatever `RUST_BACKTRACE` says.
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
         Command::ContactBench(args) => cli::contact_bench::run(&args),
         Command::Experiment(args) => cli::experiment::run_cmd(args),
         Command::Transfer(args) => cli::transfer::run(args),
@@ -43,5 +46,12 @@ fn main() -> Result<()> {
         Command::Stress(args) => cli::stress::run(args),
         Command::Plot(args) => cli::plot::run(&args),
         Command::WorkPrecision(args) => cli::work_precision::run(args),
-    }
+    };
+    result.map_or_else(
+        |e| {
+            eprintln!("mmt: {}", rt::exit::message(e.as_ref()));
+            ExitCode::FAILURE
+        },
+        |()| ExitCode::SUCCESS,
+    )
 }

@@ -177,6 +177,11 @@ pub struct Window {
     pub t_s: f64,
     /// RMS error, % of the RMS measured force; `None` out of contact.
     pub rms_error_pct: Option<f64>,
+    /// The window contains an outage (no data from the telerobot for 100 ms or more): its
+    /// figure is not the model's error alone. Set by whoever knows the arrivals (the networked
+    /// operator's report); `false` in-process.
+    #[serde(default)]
+    pub outage: bool,
 }
 
 /// Estimated against true parameters.
@@ -430,6 +435,7 @@ fn error_over_time(s: &Series) -> Vec<Window> {
             Window {
                 t_s: start as f64 * dt,
                 rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
+                outage: false,
             }
         })
         .collect()

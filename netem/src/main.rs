@@ -123,7 +123,7 @@ fn main() -> ExitCode {
     match try_main() {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("netem: {error:#}");
+            eprintln!("netem: {}", rt::exit::message(error.as_ref()));
             ExitCode::from(2)
         }
     }

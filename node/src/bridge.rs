@@ -3,7 +3,7 @@
 //! A bridge turns the robot's world into the node's measurement type ([`RobotSample`]) and the
 //! node's [`Target`] into a motion of the robot. The simulated world (`sim::SimBridge`) is one;
 //! a real robot's bridge (`ros2::Ros2Bridge`) implements the same trait. Every bridge sits
-//! behind the same command limits ([`crate::guard`]), applied by the loop that steps it.
+//! behind the same motion guard ([`crate::Guarded`]).
 //!
 //! Time: a simulator reads its sensors in the tick ([`Reading::ThisTick`]); a real robot's
 //! samples carry their own time ([`Reading::Stamped`]), arrive at their own rate, and a tick may
@@ -68,16 +68,6 @@ pub enum Reading {
     Nothing,
 }
 
-impl Target {
-    /// No target at all (a placeholder where nothing may be commanded; the guard refuses it).
-    pub const NOTHING: Target = Target {
-        position_m: [f64::NAN; 3],
-        velocity_m_per_s: [0.0; 3],
-        command_sample_time_ns: 0,
-        holding: true,
-    };
-}
-
 /// What the robot did in one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BridgeSample {
@@ -108,5 +98,13 @@ pub trait RobotBridge: Send {
     /// once (the loop steps the node once per sample). Default: none.
     fn next_reading(&mut self) -> Option<BridgeSample> {
         None
+    }
+    /// Puts the robot back in a known, finite state with the tool at rest at `tool_m`, after a
+    /// fault (a reading that is not finite). Returns whether it could: the simulated world is
+    /// rebuilt; a real robot's bridge that cannot (the default) leaves the guard holding still
+    /// and the fault reported.
+    fn recover(&mut self, tool_m: Vec3) -> bool {
+        let _ = tool_m;
+        false
     }
 }

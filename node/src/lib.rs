@@ -12,8 +12,9 @@
 //! - [`operator::OperatorNode`]: device position → contact on the latest received cloud (remote
 //!   contact as fallback) → renderers with the latest accepted parameters → force and a command;
 //!   a short history to rewind and replay.
-//! - [`guard::CommandGuard`]: the command limits every robot bridge sits behind (no command
-//!   before a state, hold on a stale state, workspace box, maximum step and speed), counted.
+//! - [`guard`]: the motion guard every robot bridge goes through ([`Guarded`]): no command
+//!   before the robot's first state, hold on a stale state, a workspace box, a largest step and
+//!   speed, faults on non-finite readings, checks at each session.
 //! - Settings: [`TelerobotSettings`] from the telerobot's scene, [`OperatorSettings`] from the
 //!   `Welcome` alone; conversions between the core's types and the wire's.
 //!
@@ -38,7 +39,7 @@ mod tracker;
 mod wire;
 
 pub use bridge::{BridgeSample, Reading, RobotBridge, RobotSample, Target};
-pub use guard::{CommandGuard, CommandLimits, GuardStats};
+pub use guard::{GuardStats, Guarded, MotionGuard, MotionLimits};
 pub use settings::{
     KnownSurface, OperatorSettings, RATE_RANGE_HZ, SettingsError, TelerobotSettings,
 };

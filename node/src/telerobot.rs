@@ -57,6 +57,10 @@ pub struct TelerobotStats {
     pub commands: u64,
     /// Commands dropped: duplicates, older than the one executing, or not finite.
     pub stale_commands: u64,
+    /// Commands refused for an implausible playout time: their lag (arrival − sample time)
+    /// differs from the session's first command's by more than the limit
+    /// ([`crate::MotionLimits::max_clock_jump_ns`]).
+    pub implausible_commands: u64,
     /// Commands passed over because a newer one's turn had come (backlog after a stall).
     pub skipped_commands: u64,
     /// Samples with a non-finite value (dropped).
@@ -89,6 +93,8 @@ pub struct TelerobotNode {
     last_frame: Option<SurfaceFrame>,
     shear_anchor: [f64; 2],
     reconstruction: Option<(f64, f64)>,
+    /// The session's first accepted command's lag (arrival − sample time) \[ns\].
+    reference_lag_ns: Option<i64>,
     stats: TelerobotStats,
 }
 
@@ -124,13 +130,17 @@ impl TelerobotNode {
             last_frame: None,
             shear_anchor: [0.0; 2],
             reconstruction: None,
+            reference_lag_ns: None,
             stats: TelerobotStats::default(),
             settings,
         })
     }
 
     /// A command arrived. It is held until its turn ([`super::playout`]); duplicates, commands
-    /// older than the one executing and non-finite ones are dropped and counted.
+    /// older than the one executing and non-finite ones are dropped and counted. A command whose
+    /// lag (arrival − sample time) is further than the limit from the session's first command's
+    /// has an implausible playout time (a clock jumping by hours would hold every later command
+    /// back, or make it stale): it is refused and counted.
     pub fn on_command(&mut self, command: CommandSample) {
         let finite = command
             .position_m
@@ -139,6 +149,12 @@ impl TelerobotNode {
             .all(|v| v.is_finite());
         if !finite {
             self.stats.stale_commands += 1;
+            return;
+        }
+        let lag = command.received_ns.saturating_sub(command.sample_time_ns);
+        let reference = *self.reference_lag_ns.get_or_insert(lag);
+        if lag.saturating_sub(reference).saturating_abs() > self.settings.limits.max_clock_jump_ns {
+            self.stats.implausible_commands += 1;
             return;
         }
         match self.playout.push(command) {

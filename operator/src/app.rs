@@ -55,6 +55,10 @@ pub struct RunConfig {
     /// What the run knows beyond the wire (the demo): the scene's truth, the seed and the set
     /// delay.
     pub known: Option<Known>,
+    /// Where the run's records are streamed as it goes (`--out`, checked before the run):
+    /// `ticks.csv` and `measurements.csv`, flushed every [`crate::helper::STREAM_FLUSH`], so
+    /// that a killed run leaves them readable up to the last flush.
+    pub stream_to: Option<rt::OutDir>,
 }
 
 /// What the demo knows about the telerobot.
@@ -128,6 +132,7 @@ pub struct Outcome {
 
 /// Runs the operator until the run's length or `shutdown`, then reports.
 pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
+    let run_started = Instant::now();
     let mut device = open_device(&config.device, &config.open)?;
     let spec = device.spec().clone();
     let mut safety = SafetyLayer::new(&spec, &config.safety)?;
@@ -158,9 +163,11 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         link: link.clone(),
         exchange: std::sync::Arc::new(Exchange::default()),
         shutdown: shutdown.clone(),
-        ticks: config
-            .seconds
-            .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64),
+        // What is left of `--seconds` after waiting for the session.
+        ticks: config.seconds.map(|s| {
+            let left = (s - run_started.elapsed().as_secs_f64()).max(0.0);
+            (left * 1e9 / settings.period_ns as f64).round() as u64
+        }),
     };
     let loops = run_loops(&config, haptic, settings.period_ns)?;
     report(&config, &welcome, settings.period_ns, &link, network, loops)
@@ -248,11 +255,19 @@ struct Loops {
 /// stops; then stops the helper.
 fn run_loops(config: &RunConfig, haptic: HapticLoop, period_ns: i64) -> Result<Loops, RunError> {
     let helper_stop = Shutdown::new();
+    let streams = match &config.stream_to {
+        Some(dir) => Some(helper::Streams::open(dir).map_err(|e| RunError::Io {
+            what: "the streamed records",
+            error: std::io::Error::other(e.to_string()),
+        })?),
+        None => None,
+    };
     let helper = helper::spawn(
         haptic.link.clone(),
         std::sync::Arc::clone(&haptic.exchange),
         haptic.session,
         config.node,
+        streams,
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;
@@ -352,7 +367,17 @@ fn wait_for_session(
         if shutdown.wait_timeout(Duration::from_millis(10)) {
             return Err(RunError::Stopped);
         }
-        if let Some(timeout) = config.first_session_timeout
+        // `--seconds` bounds the whole run, connected or not.
+        let bound = [
+            config.first_session_timeout,
+            config
+                .seconds
+                .and_then(|s| Duration::try_from_secs_f64(s).ok()),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        if let Some(timeout) = bound
             && waited.elapsed() > timeout
         {
             return Err(RunError::NoSession {

@@ -6,7 +6,11 @@
 //! - on a new session (a reconnect) builds a fresh operator node from the new `Welcome` and hands
 //!   it to the loop; drops the nodes the loop retired;
 //! - drains the loop's tick records and the telerobot's measurements into the recording the
-//!   report is computed from, each measurement stamped with the current clock-offset estimate.
+//!   report is computed from, each measurement stamped with the current clock-offset estimate;
+//!   with `--out`, appends both to `ticks.csv` and `measurements.csv` ([`Streams`]) and flushes
+//!   them every [`STREAM_FLUSH`]: a run killed with SIGKILL leaves both readable up to the last
+//!   flush (the series joins them: a measurement's `command_sample_time_ns` is
+//!   `start_ns + tick·period`, the first line's comment gives both).
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -29,6 +33,95 @@ const POLL: Duration = Duration::from_millis(2);
 const KEEP: usize = 4;
 /// Most ticks recorded: one hour at 1 kHz (about 200 MB); the report covers the first hour.
 pub const MAX_RECORDED_TICKS: usize = 3_600_000;
+
+/// How often the streamed records are flushed to the operating system.
+pub const STREAM_FLUSH: Duration = Duration::from_millis(250);
+
+/// The run's records streamed to `--out` as they come.
+#[derive(Debug)]
+pub struct Streams {
+    ticks: rt::out::Stream,
+    measurements: rt::out::Stream,
+    line: String,
+    flushed: std::time::Instant,
+    warned: bool,
+}
+
+impl Streams {
+    /// Creates (truncates) `ticks.csv` and `measurements.csv` in `dir`.
+    pub fn open(dir: &rt::OutDir) -> Result<Streams, rt::OutError> {
+        Ok(Streams {
+            ticks: dir.stream(
+                "ticks.csv",
+                "tick,x_m,y_m,z_m,rendered_x_n,rendered_y_n,rendered_z_n,in_contact,rendering",
+            )?,
+            measurements: dir.stream(
+                "measurements.csv",
+                "received_ns,offset_ns,command_sample_time_ns,x_m,y_m,z_m,\
+                 measured_x_n,measured_y_n,measured_z_n,in_contact,estimator_stable",
+            )?,
+            line: String::with_capacity(256),
+            flushed: std::time::Instant::now(),
+            warned: false,
+        })
+    }
+
+    fn tick(&mut self, t: &TickRecord) {
+        use std::fmt::Write as _;
+        self.line.clear();
+        let (p, f) = (t.position_m, t.force_n);
+        let _ = write!(
+            self.line,
+            "{},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{},{}",
+            t.index,
+            p[0],
+            p[1],
+            p[2],
+            f[0],
+            f[1],
+            f[2],
+            u8::from(t.in_contact),
+            u8::from(t.rendering)
+        );
+        self.ticks.line(&self.line);
+    }
+
+    fn measurement(&mut self, m: &MeasurementRecord) {
+        use std::fmt::Write as _;
+        self.line.clear();
+        let (p, f) = (m.message.position_m, m.message.force_on_tool_n);
+        let _ = write!(
+            self.line,
+            "{},{},{},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{},{}",
+            m.received_ns,
+            m.offset_ns.map_or(String::new(), |o| o.to_string()),
+            m.message.command_sample_time_ns,
+            p[0],
+            p[1],
+            p[2],
+            f[0],
+            f[1],
+            f[2],
+            u8::from(m.message.in_contact),
+            u8::from(m.message.estimator_stable)
+        );
+        self.measurements.line(&self.line);
+    }
+
+    fn flush(&mut self, now: bool) {
+        if !now && self.flushed.elapsed() < STREAM_FLUSH {
+            return;
+        }
+        self.flushed = std::time::Instant::now();
+        self.ticks.flush();
+        self.measurements.flush();
+        if !self.warned && (self.ticks.failed() || self.measurements.failed()) {
+            self.warned = true;
+            tracing::warn!(file = %self.ticks.path().display(),
+                "streaming the records failed (disk full?): the report at the end still comes");
+        }
+    }
+}
 
 /// A measurement as received.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +156,7 @@ pub fn spawn(
     exchange: Arc<Exchange>,
     session: u64,
     config: OperatorConfig,
+    streams: Option<Streams>,
     stop: Shutdown,
 ) -> std::io::Result<JoinHandle<Recording>> {
     std::thread::Builder::new()
@@ -75,11 +169,15 @@ pub fn spawn(
                 config,
                 kept: VecDeque::with_capacity(KEEP + 1),
                 recording: Recording::default(),
+                streams,
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
             }
             helper.round();
+            if let Some(s) = &mut helper.streams {
+                s.flush(true);
+            }
             helper.recording
         })
 }
@@ -91,6 +189,7 @@ struct Helper {
     config: OperatorConfig,
     kept: VecDeque<Arc<CloudIndex>>,
     recording: Recording,
+    streams: Option<Streams>,
 }
 
 impl Helper {
@@ -100,6 +199,9 @@ impl Helper {
         while self.exchange.retired.take().is_some() {}
         let r = &mut self.recording;
         while let Some(t) = self.exchange.ticks.take() {
+            if let Some(s) = &mut self.streams {
+                s.tick(&t);
+            }
             if r.ticks.len() < MAX_RECORDED_TICKS {
                 r.ticks.push(t);
             } else {
@@ -108,13 +210,20 @@ impl Helper {
         }
         let offset_ns = self.link.stats().clock_offset_ns;
         while let Some(m) = self.link.measurement() {
-            if r.measurements.len() < MAX_RECORDED_TICKS {
-                r.measurements.push(MeasurementRecord {
-                    message: m.message,
-                    received_ns: m.received_ns,
-                    offset_ns,
-                });
+            let record = MeasurementRecord {
+                message: m.message,
+                received_ns: m.received_ns,
+                offset_ns,
+            };
+            if let Some(s) = &mut self.streams {
+                s.measurement(&record);
             }
+            if r.measurements.len() < MAX_RECORDED_TICKS {
+                r.measurements.push(record);
+            }
+        }
+        if let Some(s) = &mut self.streams {
+            s.flush(false);
         }
     }
 

@@ -12,6 +12,10 @@ use crate::world::{World, WorldSample};
 pub struct SimBridge {
     world: World,
     tool_m: [f64; 3],
+    scene: Scene,
+    seed: u64,
+    /// Times the world was rebuilt after a fault ([`RobotBridge::recover`]).
+    rebuilds: u64,
 }
 
 impl SimBridge {
@@ -20,6 +24,9 @@ impl SimBridge {
         Ok(SimBridge {
             world: World::new(scene, tool_m, seed)?,
             tool_m,
+            scene: scene.clone(),
+            seed,
+            rebuilds: 0,
         })
     }
 }
@@ -36,6 +43,11 @@ impl SimBridge {
     /// The world (its surface frame, for the camera and the reports).
     pub fn world(&self) -> &World {
         &self.world
+    }
+
+    /// Times the world was rebuilt after a fault.
+    pub fn rebuilds(&self) -> u64 {
+        self.rebuilds
     }
 }
 
@@ -58,6 +70,24 @@ impl RobotBridge for SimBridge {
             tool_m: s.truth.position_m,
             object_slide_m: s.object_offset_m,
             reading: Reading::ThisTick,
+        }
+    }
+
+    /// Rebuilds the world as the scene starts it, the tool at rest at `tool_m`, with the same
+    /// noise seed (what a fresh daemon would run). Runs once per fault: the allocation is the
+    /// price of a world that was not finite any more.
+    fn recover(&mut self, tool_m: [f64; 3]) -> bool {
+        if !mmt::vec3::is_finite(tool_m) {
+            return false;
+        }
+        match World::new(&self.scene, tool_m, self.seed) {
+            Ok(world) => {
+                self.world = world;
+                self.tool_m = tool_m;
+                self.rebuilds += 1;
+                true
+            }
+            Err(_) => false,
         }
     }
 }

@@ -96,12 +96,14 @@ pub enum ConfigError {
     #[error("--expected-delay-ms: {0}")]
     Tuning(#[from] TuningError),
     /// The scene file could not be read.
-    #[error("cannot read scene file {file}: {source}")]
+    // The OS's reason is in the message and not a `source`: the binaries print error chains,
+    // and it was printed twice ("Is a directory (os error 21): Is a directory (os error 21)").
+    #[error("cannot read scene file {file}: {error}")]
     SceneFile {
         /// The file.
         file: String,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The scene is invalid (the message names the field, the value and the allowed range).
     #[error(transparent)]
@@ -121,9 +123,9 @@ impl RunConfig {
             Some(path) => {
                 let file = path.display().to_string();
                 let text =
-                    std::fs::read_to_string(path).map_err(|source| ConfigError::SceneFile {
+                    std::fs::read_to_string(path).map_err(|error| ConfigError::SceneFile {
                         file: file.clone(),
-                        source,
+                        error,
                     })?;
                 let mut scene = Scene::from_toml(&text, &file)?;
                 // A cloud file is named relative to the scene file.

@@ -6,12 +6,14 @@
 //!    a command of a newer session swaps in a fresh node (new operator, new clock, new model);
 //! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread);
 //! 3. the node says where the robot goes (the command whose turn it is, or hold still when the
-//!    newest command is older than 50 ms); the command guard (`node::guard`: no command before
-//!    a state, hold on a stale state, workspace box, step and speed limits) bounds it, whatever
-//!    the bridge; the bridge moves and measures;
+//!    newest command is older than 50 ms); the motion guard bounds it (`node::guard`: nothing
+//!    before the robot's first state, hold on a state older than 50 ms, workspace box, step,
+//!    speed; a reading not finite is a fault, the bridge recovers), whatever the bridge; the
+//!    bridge moves and measures;
 //! 4. the node steps with a new measurement, at the measurement's own time (a simulator's is
-//!    the tick; a ROS 2 robot's its header stamp; a tick that brought none steps nothing); its
-//!    messages go to the network task's outbox while an operator is connected;
+//!    the tick; a ROS 2 robot's its header stamp; a tick that brought none, or a stale state,
+//!    steps nothing); its messages go to the network task's outbox while an operator is
+//!    connected;
 //! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread.
 //!
 //! Nothing here allocates, frees, locks or logs: commands, indices, snapshots and datagrams move
@@ -21,7 +23,7 @@
 use std::sync::Arc;
 
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use node::{CommandGuard, GuardStats, Reading, RobotBridge, TelerobotSettings};
+use node::{GuardStats, Guarded, Reading, RobotBridge, TelerobotSettings};
 use protocol::telerobot_to_operator::{ContactState, Datagram};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
@@ -51,7 +53,7 @@ pub struct LoopSnapshot {
     pub stable: bool,
     /// Nodes built on the loop thread because no spare was ready (should stay 0).
     pub inline_node_builds: u64,
-    /// What the command guard did.
+    /// The motion guard's counters, since the daemon started (every session).
     pub guard: GuardStats,
     /// Ticks whose bridge sample was new (the node stepped).
     pub fresh_samples: u64,
@@ -78,8 +80,8 @@ impl Default for Spares {
 pub(crate) struct ControlLoop {
     pub(crate) node: Box<TelerobotNode>,
     pub(crate) settings: TelerobotSettings,
-    pub(crate) bridge: Box<dyn RobotBridge>,
-    pub(crate) guard: CommandGuard,
+    /// The robot, behind the motion guard (`node::guard`).
+    pub(crate) bridge: Guarded<Box<dyn RobotBridge>>,
     /// Where the model and contact state are published besides the operator (a ROS 2 robot's
     /// `/mmt/theta` and `/mmt/in_contact`).
     pub(crate) outlet: Option<ros2::ModelOutlet>,
@@ -111,7 +113,7 @@ impl ControlLoop {
             self.tick(tick, &mut state);
         }
         LoopEnd {
-            last: state.snapshot(&self.node, &self.guard),
+            last: state.snapshot(&self.node, self.bridge.stats()),
             node: self.node,
         }
     }
@@ -126,6 +128,8 @@ impl ControlLoop {
                 if state.session != 0 {
                     self.fresh_node(state);
                 }
+                // Whatever the last session left: a robot not finite is recovered and reported.
+                self.bridge.begin_session();
                 state.session = c.session;
             }
             let header = c.message.header;
@@ -141,14 +145,9 @@ impl ControlLoop {
         if let Some((frame_id, index)) = self.camera.index.take() {
             self.node.set_cloud(index, frame_id);
         }
-        let target = match self.bridge.tool_m() {
-            Some(tool) => {
-                let wanted = self.node.target(now, tool);
-                self.guard.apply(now, &wanted).0
-            }
-            None => self.guard.apply(now, &node::Target::NOTHING).0,
-        };
-        let sample = self.bridge.step(now, target.as_ref());
+        let wanted = self.bridge.tool_m().map(|tool| self.node.target(now, tool));
+        let sample = self.bridge.step(now, wanted.as_ref());
+        let target = self.bridge.commanded().copied();
         self.camera.pose.push(CameraPose {
             now_ns: now,
             tool_m: sample.tool_m,
@@ -166,7 +165,8 @@ impl ControlLoop {
             state.tool_m = tool;
         }
         if tick.index.is_multiple_of(SNAPSHOT_EVERY) {
-            self.snapshots.push(state.snapshot(&self.node, &self.guard));
+            self.snapshots
+                .push(state.snapshot(&self.node, self.bridge.stats()));
         }
     }
 
@@ -187,9 +187,8 @@ impl ControlLoop {
             } => (sample_time_ns, command_sample_time_ns),
             Reading::Repeated | Reading::Nothing => return,
         };
-        self.guard.on_reading(sample_ns, sample.tool_m);
         // A stale state is not estimated from (the guard holds the robot meanwhile).
-        if self.guard.state_is_stale(now) {
+        if self.bridge.state_is_stale(now) {
             return;
         }
         state.fresh_samples += 1;
@@ -226,7 +225,6 @@ impl ControlLoop {
         };
         let old = std::mem::replace(&mut self.node, fresh);
         self.spares.retired.push(old);
-        self.guard.restart();
     }
 }
 
@@ -243,7 +241,7 @@ struct State {
 }
 
 impl State {
-    fn snapshot(&self, node: &TelerobotNode, guard: &CommandGuard) -> LoopSnapshot {
+    fn snapshot(&self, node: &TelerobotNode, guard: GuardStats) -> LoopSnapshot {
         LoopSnapshot {
             tick: self.tick,
             now_ns: self.now_ns,
@@ -253,7 +251,7 @@ impl State {
             node: node.stats(),
             stable: node.is_stable(),
             inline_node_builds: self.inline_node_builds,
-            guard: guard.stats(),
+            guard,
             fresh_samples: self.fresh_samples,
         }
     }

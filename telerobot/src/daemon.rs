@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
 use node::telerobot::TelerobotNode;
-use node::{CommandGuard, CommandLimits, GuardStats, TelerobotSettings};
+use node::{GuardStats, MotionLimits, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
@@ -32,6 +32,7 @@ use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
 use crate::net::{self, NetConfig, TelerobotLink};
 use crate::robot::{self, RobotConfig};
+use crate::watch::{CommandGaps, GuardLog};
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -63,8 +64,10 @@ pub struct RunConfig {
     pub realtime_priority: Option<u8>,
     /// Which robot: the simulated world or a ROS 2 robot.
     pub robot: RobotConfig,
-    /// The command limits every bridge sits behind (the scene's `[limits]`, flags over them).
-    pub limits: CommandLimits,
+    /// The motion limits every bridge sits behind (`node::guard`): the scene's `[limits]`
+    /// (`Scene::motion_limits`), the command line's flags over them. The node's settings take
+    /// them too (its playout-time check).
+    pub limits: MotionLimits,
 }
 
 impl RunConfig {
@@ -85,6 +88,11 @@ impl RunConfig {
             self.scene_summary(),
         );
         config.tuning = self.tuning.clone();
+        config.trusted_labels = self
+            .trusted_operators
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect();
         config
     }
 
@@ -162,6 +170,9 @@ pub struct Summary {
     pub outbox_overwritten: u64,
     /// Link counters.
     pub link: LinkReport,
+    /// Times without commands (100 ms or more) between the first command and the last, across
+    /// sessions (a reconnect does not restart them; the time between two operators counts).
+    pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
     /// The ROS 2 bridge's report (`--robot ros2`).
@@ -183,7 +194,7 @@ pub struct SnapshotReport {
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
-    /// What the command guard did: every limit that acted, counted.
+    /// The motion guard's counters over every session.
     pub guard: GuardStats,
     /// New robot samples the node stepped on.
     pub fresh_samples: u64,
@@ -195,7 +206,7 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<Vec<i64>>>,
+    housekeeping: Option<JoinHandle<(Vec<i64>, transport::Outages)>>,
     shared: Arc<Housekeeping>,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
@@ -270,17 +281,19 @@ fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, ro
         "telerobot running ({robot})");
     tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
         max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
-        state_timeout_ms = l.state_timeout_ns as f64 * 1e-6,
-        "command limits (every limit that acts is counted and logged once per episode)");
+        max_clock_jump_s = l.max_clock_jump_ns as f64 * 1e-9,
+        state_timeout_ms = MotionLimits::STATE_TIMEOUT_NS as f64 * 1e-6,
+        "motion limits (every limit that acts is counted and logged once per episode)");
 }
 
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let settings = config.scene.telerobot_settings();
+        let mut settings = config.scene.telerobot_settings();
+        settings.limits = config.limits;
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let guard = CommandGuard::new(config.limits)?;
+        config.limits.validate()?;
         let built = robot::build(
             &config.robot,
             &config.scene,
@@ -289,6 +302,7 @@ impl Telerobot {
             config.seed,
             None,
         )?;
+        let bridge = node::Guarded::new(built.bridge, settings.limits);
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -310,8 +324,7 @@ impl Telerobot {
         let control = ControlLoop {
             node,
             settings: settings.clone(),
-            bridge: built.bridge,
-            guard,
+            bridge,
             outlet: built.outlet,
             link: link.clone(),
             camera: Arc::clone(&feed),
@@ -335,6 +348,7 @@ impl Telerobot {
             spare_at: None,
             command_latency,
             latencies: Vec::new(),
+            outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
         log_start(&config, network.addr, &periodic_config, &built.description);
@@ -385,7 +399,7 @@ impl Telerobot {
         if let Some(camera) = self.camera.take() {
             let _ = camera.join();
         }
-        let mut latencies = self
+        let (mut latencies, outages) = self
             .housekeeping
             .take()
             .and_then(|h| h.join().ok())
@@ -426,6 +440,7 @@ impl Telerobot {
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),
+            outages,
             parameters,
             robot: self.robot.as_ref().map(|m| m.report()),
             ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
@@ -472,11 +487,15 @@ struct Keeper {
     spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
     latencies: Vec<i64>,
+    outages: CommandGaps,
 }
 
 impl Keeper {
     /// Starts the housekeeping thread.
-    fn spawn(self, stop: &Shutdown) -> Result<JoinHandle<Vec<i64>>, DaemonError> {
+    fn spawn(
+        self,
+        stop: &Shutdown,
+    ) -> Result<JoinHandle<(Vec<i64>, transport::Outages)>, DaemonError> {
         let stop = stop.clone();
         std::thread::Builder::new()
             .name("housekeeping".to_owned())
@@ -484,10 +503,11 @@ impl Keeper {
             .map_err(io("the housekeeping thread"))
     }
 
-    /// Runs until `stop`; returns the command latencies \[ns\].
-    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
+    /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
+    fn run(mut self, stop: &Shutdown) -> (Vec<i64>, transport::Outages) {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
+        let mut guard_log = GuardLog::default();
         while !stop.wait_timeout(HOUSEKEEPING) {
             while self.spares.retired.take().is_some() {}
             self.drain_latencies();
@@ -497,8 +517,9 @@ impl Keeper {
                     .snapshot
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
-                log_guard(&last.guard, &s.guard);
                 last = s;
+                guard_log.update(&last);
+                self.outages.update(&last);
             }
             let now_connected = self.link.status().connected();
             if connected && !now_connected {
@@ -508,7 +529,7 @@ impl Keeper {
             self.keep_spare(&last, now_connected);
         }
         self.drain_latencies();
-        self.latencies
+        (self.latencies, self.outages.outages)
     }
 
     fn drain_latencies(&mut self) {
@@ -555,31 +576,5 @@ impl Keeper {
             loop_overruns = t.overruns,
             "session ended; the robot holds still until the next operator"
         );
-    }
-}
-
-/// Logs each command-guard rule once when it starts acting (from two snapshots' counters, off
-/// the loop's thread): an episode that began and ended between snapshots is logged too.
-fn log_guard(before: &GuardStats, now: &GuardStats) {
-    for ((rule, b), (_, n)) in before.trips().iter().zip(now.trips()) {
-        if n.episodes > b.episodes {
-            if *rule == "stale_state" {
-                tracing::warn!(
-                    episode = n.episodes,
-                    "no robot state for longer than the timeout: holding the last commanded \
-                     pose, estimation paused until states return"
-                );
-            } else {
-                tracing::warn!(
-                    rule,
-                    episode = n.episodes,
-                    ticks_so_far = n.ticks,
-                    "command limit acting: the command was clamped (counted in the report)"
-                );
-            }
-        }
-    }
-    if before.no_state_ticks == 0 && now.no_state_ticks > 0 && now.ticks == now.no_state_ticks {
-        tracing::info!("waiting for the robot's first state: nothing is commanded until it comes");
     }
 }

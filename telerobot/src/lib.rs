@@ -6,7 +6,7 @@
 //!   thread and a housekeeping thread;
 //! - [`control`]: the real-time loop stepping the telerobot node (`node`) against the robot bridge,
 //!   exactly as the in-process harness steps it (`lab::experiment`);
-//! - [`robot`]: the robot, any `node::RobotBridge` behind the command guard (`node::guard`) —
+//! - [`robot`]: the robot, any `node::RobotBridge` behind the motion guard (`node::guard`) —
 //!   the scene's simulated world (`sim::SimBridge`) or a ROS 2 robot (`ros2::Ros2Bridge`);
 //! - [`camera`]: the simulated camera and its kd-tree, off the real-time thread;
 //! - [`net`]: the QUIC server and its lock-free hand-off to the loop;
@@ -22,5 +22,6 @@ pub mod control;
 pub mod daemon;
 pub mod net;
 pub mod robot;
+mod watch;
 
 pub use daemon::{DaemonError, RunConfig, Summary, Telerobot, run};

@@ -4,7 +4,7 @@
 //! - `ros2`: a robot on a ROS 2 graph (`ros2::Ros2Bridge`): its pose, twist and wrench in, the
 //!   commanded pose out, the model and contact state published.
 //!
-//! Either way the loop puts the same command guard (`node::guard`) around it.
+//! Either way the daemon puts the same motion guard (`node::Guarded`) around it.
 
 use node::{RobotBridge, TelerobotSettings};
 use ros2::{BridgeConfig, BridgeMonitor, Graph, GraphConfig, ModelOutlet, Ros2Bridge};
@@ -126,10 +126,11 @@ pub struct RobotArgs {
     #[arg(long, value_name = "FRAME")]
     pub command_frame: Option<String>,
     /// Workspace box in the base frame, MINX,MINY,MINZ,MAXX,MAXY,MAXZ [m] (default: the scene's
-    /// [limits], else the surface point ± 0.3 m).
+    /// [limits], else the surface point ± 0.25 m).
     #[arg(long, value_name = "BOX", allow_hyphen_values = true)]
     pub workspace: Option<String>,
-    /// Largest move between consecutive commands [m] (default: the scene's, else 0.002).
+    /// Largest move between consecutive commands, per tick [m] (default: the scene's, else
+    /// 0.001).
     #[arg(long, value_name = "M", allow_hyphen_values = true)]
     pub max_step_m: Option<f64>,
     /// Largest commanded speed [m/s] (default: the scene's, else 1.0).
@@ -208,8 +209,8 @@ impl RobotArgs {
     }
 
     /// The scene's command limits with the flags over them, validated.
-    pub fn limits(&self, scene: &Scene) -> Result<node::CommandLimits, RobotArgsError> {
-        let mut l = scene.command_limits();
+    pub fn limits(&self, scene: &Scene) -> Result<node::MotionLimits, RobotArgsError> {
+        let mut l = scene.motion_limits();
         if let Some(text) = &self.workspace {
             let v: Vec<f64> = text
                 .split(',')

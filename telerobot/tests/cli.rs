@@ -100,6 +100,18 @@ fn scene_and_loop_flags_are_checked() {
         e.contains("cannot read scene file /nonexistent/s.toml"),
         "{e}"
     );
+    // A directory: the OS's reason once in the printed chain (it was printed twice).
+    let dir = temp_dir("scene-dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = RunConfig::from_args(&run_args(&["--scene", dir.to_str().unwrap()])).unwrap_err();
+    let mut chain = e.to_string();
+    let mut source = std::error::Error::source(&e);
+    while let Some(s) = source {
+        chain = format!("{chain}: {s}");
+        source = s.source();
+    }
+    assert_eq!(chain.matches("os error 21").count(), 1, "{chain}");
+    std::fs::remove_dir_all(&dir).unwrap();
     let bad = temp_dir("scene").with_extension("toml");
     std::fs::write(&bad, "name = \"x\"\n[environment]\nmass_kg = -1.0\n").unwrap();
     let e = RunConfig::from_args(&run_args(&["--scene", bad.to_str().unwrap()]))
@@ -273,4 +285,32 @@ fn logs_to_a_pipe_are_plain_text() {
     );
     assert!(status.success(), "{status:?}\n{log}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An unreadable scene file: the OS's reason once (it was printed twice: the message showed its
+/// cause and the error chain printed it again), exit status 1, no backtrace.
+#[test]
+fn a_bad_scene_path_says_why_once() {
+    let dir = std::env::temp_dir();
+    let ids = temp_dir("bad-scene");
+    let Command::GenCert(g) = parse(&["telerobot", "gen-cert", "--out", ids.to_str().unwrap()])
+    else {
+        panic!()
+    };
+    gen_cert(&g, &mut Vec::new()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_telerobot"))
+        .args(["run", "--listen", "127.0.0.1:0", "--identity"])
+        .arg(&ids)
+        .arg("--trust")
+        .arg(ids.join("telerobot.crt"))
+        .arg("--scene")
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.matches("os error 21").count(), 1, "{stderr}");
+    assert!(!stderr.contains("backtrace"), "{stderr}");
+    std::fs::remove_dir_all(&ids).unwrap();
 }

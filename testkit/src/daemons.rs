@@ -58,7 +58,7 @@ fn telerobot_config(
             .collect(),
         tuning: tuning(delay_ms),
         start_m: telerobot::RunConfig::default_start(&scene),
-        limits: scene.command_limits(),
+        limits: scene.motion_limits(),
         robot: telerobot::robot::RobotConfig::Sim,
         scene,
         seed: 1,
@@ -106,6 +106,7 @@ pub fn operator_config(
             seed: 1,
             delay_ms: known_delay_ms,
         }),
+        stream_to: None,
     }
 }
 

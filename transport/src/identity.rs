@@ -26,14 +26,14 @@ pub enum IdentityError {
         source: rcgen::Error,
     },
     /// A file or directory could not be created or read.
-    #[error("{what} {}: {source}", path.display())]
+    #[error("{what} {}: {error}", path.display())]
     Io {
         /// What was being done, e.g. "cannot write the private key".
         what: &'static str,
         /// The file or directory.
         path: PathBuf,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file is there but holds no usable PEM object of the expected kind.
     #[error("{} is not a {expected} in PEM form: {detail}", path.display())]
@@ -71,6 +71,18 @@ impl Clone for Identity {
     }
 }
 
+/// A certificate's short fingerprint: the first 8 bytes of the SHA-256 of its DER, in hex
+/// (`sha256:1a2b…`): what names an operator's identity in logs and refusals (its self-chosen
+/// name is not an identity).
+pub fn fingerprint(der: &[u8]) -> String {
+    let digest = ring::digest::digest(&ring::digest::SHA256, der);
+    let hex: String = digest.as_ref()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!("sha256:{hex}")
+}
+
 /// The certificate file of identity `name` in `dir`: `dir/<name>.crt`.
 pub fn cert_path(dir: &Path, name: &str) -> PathBuf {
     dir.join(format!("{name}.crt"))
@@ -97,10 +109,10 @@ impl Identity {
         names: &[&str],
     ) -> Result<(Identity, PathBuf, PathBuf), IdentityError> {
         let (identity, cert_pem, key_pem) = generate(names)?;
-        fs::create_dir_all(dir).map_err(|source| IdentityError::Io {
+        fs::create_dir_all(dir).map_err(|error| IdentityError::Io {
             what: "cannot create the directory",
             path: dir.to_owned(),
-            source,
+            error,
         })?;
         let (cert_file, key_file) = (cert_path(dir, name), key_path(dir, name));
         for path in [&cert_file, &key_file] {
@@ -189,10 +201,10 @@ fn generate(names: &[&str]) -> Result<(Identity, String, String), IdentityError>
 }
 
 fn read(path: &Path, what: &'static str) -> Result<Vec<u8>, IdentityError> {
-    fs::read(path).map_err(|source| IdentityError::Io {
+    fs::read(path).map_err(|error| IdentityError::Io {
         what,
         path: path.to_owned(),
-        source,
+        error,
     })
 }
 
@@ -209,10 +221,10 @@ fn write_new(
     std::os::unix::fs::OpenOptionsExt::mode(&mut options, mode);
     #[cfg(not(unix))]
     let _ = mode;
-    let io = |source| IdentityError::Io {
+    let io = |error| IdentityError::Io {
         what,
         path: path.to_owned(),
-        source,
+        error,
     };
     let mut file = options.open(path).map_err(io)?;
     file.write_all(contents).map_err(io)?;

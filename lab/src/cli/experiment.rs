@@ -53,6 +53,25 @@ pub struct ExperimentArgs {
     reorder_pct: f64,
 }
 
+/// The link's loss, duplication and reordering, checked as the user wrote them (percent) before
+/// they become the harness's fractions.
+fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<()> {
+    for (flag, pct) in [
+        ("--loss-pct", args.loss_pct),
+        ("--duplicate-pct", args.duplicate_pct),
+        ("--reorder-pct", args.reorder_pct),
+    ] {
+        anyhow::ensure!(
+            pct.is_finite() && (0.0..50.0).contains(&pct),
+            "{flag} {pct}: expected a percentage in [0, 50)"
+        );
+    }
+    config.loss = args.loss_pct / 100.0;
+    config.duplicate = args.duplicate_pct / 100.0;
+    config.reorder = args.reorder_pct / 100.0;
+    Ok(())
+}
+
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     let kind = Kind::parse(&args.name)?;
     let scene = match &args.scene {
@@ -69,15 +88,13 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     }
     config.seconds = args.seconds;
     config.seed = args.seed;
-    if let Some(t) = args.trajectory {
+    if let Some(t) = args.trajectory.clone() {
         config.trajectory = t;
     }
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.jitter_ms = args.jitter_ms;
-    config.loss = args.loss_pct / 100.0;
-    config.duplicate = args.duplicate_pct / 100.0;
-    config.reorder = args.reorder_pct / 100.0;
+    link_faults(&mut config, &args)?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
@@ -88,6 +105,8 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
         bar
     });
+    // Checked before the run: a path that cannot be written must not cost the run.
+    let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
     let (series, report) = run(&config, &mut |f| {
         if let Some(bar) = &bar {
@@ -103,16 +122,14 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         "wall_seconds": wall,
         "real_time_factor": report.sim_seconds / wall,
     });
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(dir) = &dir {
         for (name, bytes) in crate::report::files(&report, &series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+            dir.write_atomic(&name, &bytes)?;
         }
         // Wall-clock time lives apart so report.json is bit-for-bit reproducible.
-        std::fs::write(
-            dir.join("timing.json"),
-            serde_json::to_string_pretty(&timing)?,
+        dir.write_atomic(
+            "timing.json",
+            serde_json::to_string_pretty(&timing)?.as_bytes(),
         )?;
     }
     if args.json {
@@ -131,4 +148,50 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: ExperimentArgs,
+    }
+
+    /// Before: `--loss-pct 150` was refused as "loss = 1.5: a fraction".
+    #[test]
+    fn percentages_are_checked_as_percentages() {
+        for flag in ["--loss-pct", "--duplicate-pct", "--reorder-pct"] {
+            let cli = Cli::try_parse_from(["mmt", "exp1", flag, "150"]).unwrap();
+            let e = run_cmd(cli.args).unwrap_err().to_string();
+            assert_eq!(e, format!("{flag} 150: expected a percentage in [0, 50)"));
+        }
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("mmt-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let cli = Cli::try_parse_from([
+            "mmt",
+            "exp1",
+            "--seconds",
+            "3000",
+            "--out",
+            file.to_str().unwrap(),
+        ])
+        .unwrap();
+        let started = Instant::now();
+        let e = run_cmd(cli.args).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(started.elapsed().as_secs() < 5, "the experiment ran first");
+        std::fs::remove_file(&file).unwrap();
+    }
 }

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use metrics::{NodeInfo, RunInfo, Series, analyse, parameter_report};
 use mmt::contact::CloudIndex;
 use netem::{Channel, LinkConfig};
+use node::MotionGuard;
 use node::operator::{OperatorConfig, OperatorNode};
 use node::telerobot::{CommandSample, TelerobotNode};
 use node::{OperatorSettings, Target, cloud_to_wire};
@@ -111,6 +112,8 @@ struct Harness {
     period_ns: i64,
     trajectory: Placed,
     bridge: SimBridge,
+    /// The motion guard the daemon's bridge goes through (`node::guard`), the same limits.
+    guard: MotionGuard,
     robot_m: [f64; 3],
     operator: OperatorSide,
     telerobot: TelerobotSide,
@@ -139,6 +142,7 @@ impl Harness {
             period_ns: settings.period_ns,
             trajectory,
             bridge: SimBridge::new(scene, start, config.seed)?,
+            guard: MotionGuard::new(settings.limits),
             robot_m: start,
             operator: OperatorSide {
                 node: OperatorNode::new(operator_settings, config.operator, start)?,
@@ -183,6 +187,7 @@ impl Harness {
         series.push_operator(device.position_m, &out, &remote);
         self.deliver_uplink(now);
         let target = self.telerobot.node.target(now, self.robot_m);
+        let target = self.guard.limit(&target, self.robot_m);
         let sample = self.bridge.step_world(&target);
         self.robot_m = sample.truth.position_m;
         self.take_frame(now, &sample.object_offset_m)?;

@@ -2,9 +2,8 @@
 //! report.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
 
@@ -17,7 +16,9 @@ use crate::safety::SafetyConfig;
 /// `operator run`'s run length, loop and report options.
 #[derive(Clone, Debug, Args)]
 pub struct LoopArgs {
-    /// Stop after this many seconds of haptic loop (default: run until Ctrl-C).
+    /// Stop after this many seconds (default: run until Ctrl-C). It bounds the whole run:
+    /// waiting for the telerobot (unreachable, or busy) counts, and the haptic loop runs for
+    /// what is left.
     #[arg(long, value_name = "S")]
     pub seconds: Option<f64>,
     /// Write report.json and series.csv into DIR (`mmt plot DIR` draws the plots).
@@ -71,12 +72,13 @@ impl LoopArgs {
     }
 }
 
-/// `operator run` with a telerobot: runs the app, prints and writes the report.
+/// `operator run` with a telerobot: runs the app, prints and writes the report into `dir`
+/// (checked before: `--out`).
 pub(super) fn run_cmd(
     args: &LoopArgs,
+    dir: Option<rt::OutDir>,
     net: NetConfig,
-    device: DeviceSpec,
-    open: OpenOptions,
+    (device, open): (DeviceSpec, OpenOptions),
     safety: SafetyConfig,
     shutdown: Shutdown,
     out: &mut dyn Write,
@@ -93,25 +95,20 @@ pub(super) fn run_cmd(
         node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
+        stream_to: dir.clone(),
     };
     let outcome = app::run(config, shutdown)?;
-    emit(&outcome, args.out.as_deref(), args.json, out)
+    emit(&outcome, dir.as_ref(), args.json, out)
 }
 
-/// Prints the report (table or JSON) and writes the files.
+/// Prints the report (table or JSON) and writes the files (each atomically), printing first:
+/// a file that cannot be written then costs the file, not the printed report.
 pub fn emit(
     outcome: &Outcome,
-    dir: Option<&Path>,
+    dir: Option<&rt::OutDir>,
     json: bool,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
-    if let Some(dir) = dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
-        }
-    }
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
     } else {
@@ -120,11 +117,16 @@ pub fn emit(
             "{}",
             report::table(&outcome.report, &report::PeerFigures::default())
         )?;
-        if let Some(dir) = dir {
+    }
+    if let Some(dir) = dir {
+        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
+            dir.write_atomic(&name, &bytes)?;
+        }
+        if !json {
             writeln!(
                 out,
                 "files: {0}/report.json, series.csv (plots: cargo run --release -p lab -- plot {0})",
-                dir.display()
+                dir.path().display()
             )?;
         }
     }

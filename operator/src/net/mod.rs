@@ -62,6 +62,9 @@ pub struct NetConfig {
     /// Cloud streams the telerobot may have open at once. Default 4 (older ones are reset by the
     /// telerobot when a newer frame starts).
     pub max_cloud_streams: u32,
+    /// A telerobot that answers "busy" is asked again (with the backoff) until the run ends,
+    /// instead of ending the run. Default true; `--no-wait` turns it off.
+    pub wait_when_busy: bool,
 }
 
 impl NetConfig {
@@ -86,6 +89,7 @@ impl NetConfig {
             reconnect_initial: Duration::from_millis(250),
             reconnect_max: Duration::from_secs(4),
             max_cloud_streams: 4,
+            wait_when_busy: true,
         }
     }
 }
@@ -141,6 +145,7 @@ pub async fn connect_and_run(
         io,
         pin,
         stop: stop_rx,
+        warned_no_answer: false,
     };
     tokio::pin!(shutdown);
     let mut wait = config.reconnect_initial;

@@ -26,7 +26,7 @@ use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
 use rt::{Summary, TimingReport};
 use serde::Serialize;
 use sim::scene::Scene;
-use transport::LinkReport;
+use transport::{LinkReport, Outages};
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
@@ -64,6 +64,9 @@ pub struct NetworkedReport {
     pub measurements: (u64, u64),
     /// Sessions the haptic loop ran (1 + reconnections).
     pub sessions: u64,
+    /// Times without measurements from the telerobot (100 ms or more) over the whole run,
+    /// across sessions: `link.max_gap_ms` is within a session, and a reconnect restarts it.
+    pub outages: Outages,
     /// Cloud frames indexed and refused.
     pub clouds: (u64, u64),
     /// What the safety layer did.
@@ -181,6 +184,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
     // No shadow node runs in the app: its figures would repeat the operator's.
     experiment.rms_error_pct_remote_contact = None;
     experiment.contact_switch_latency_ms.remote_only = None;
+    let outages = mark_outages(facts, rec, &mut experiment.error_over_time);
     let report = NetworkedReport {
         experiment,
         measured_delay_ms: estimate.map(|e| e.delay_ms),
@@ -196,6 +200,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             facts.measurements_overwritten,
         ),
         sessions: end.sessions,
+        outages,
         clouds: rec.clouds,
         safety: end.safety,
         renderers: end.renderers.clone(),
@@ -214,6 +219,22 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
+}
+
+/// The run's outages (from the measurements' arrivals, to the last tick), and each 1 s window
+/// of `windows` that overlaps one marked.
+fn mark_outages(facts: &RunFacts, rec: &Recording, windows: &mut [metrics::Window]) -> Outages {
+    let mut arrivals: Vec<i64> = rec.measurements.iter().map(|m| m.received_ns).collect();
+    arrivals.sort_unstable();
+    let ticks = rec.ticks.last().map_or(0, |t| t.index as i64 + 1);
+    let end_ns = facts.start_ns + ticks * facts.period_ns;
+    let (outages, spans) = Outages::from_arrivals(&arrivals, end_ns);
+    for w in windows {
+        let from = facts.start_ns + (w.t_s * 1e9).round() as i64;
+        let to = from + 1_000_000_000;
+        w.outage = spans.iter().any(|&(a, b)| a < to && b > from);
+    }
+    outages
 }
 
 /// The last parameters received against the scene's truth, when the run knows it.

@@ -38,17 +38,19 @@
 //! r3_m = 0.03
 //! [sensors]
 //! preset = "franka-like"      # franka-like | clean
-//! [limits]                    # command limits, base frame (see `limits`); all optional
-//! max_speed_m_per_s = 0.5
+//! [limits]                    # optional, each key too (defaults: node::MotionLimits)
+//! workspace_min_m = [-0.25, -0.25, -0.25]
+//! workspace_max_m = [0.25, 0.25, 0.25]
+//! max_step_m = 0.001          # per tick
+//! max_speed_m_per_s = 1.0
+//! max_clock_jump_s = 10.0
 //! ```
 
 mod cloud;
-mod limits;
 mod settings;
 mod validate;
 
 pub use cloud::{CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS};
-pub use limits::{DEFAULT_WORKSPACE_HALF_M, LimitsSection};
 pub use validate::SceneError;
 
 use crate::SensorNoise;
@@ -83,9 +85,27 @@ pub struct Scene {
     /// Loop rates.
     #[serde(default)]
     pub rates: Rates,
-    /// Command limits of every robot bridge.
+    /// What the robot may be told to do (`node::MotionLimits`); each limit left out takes its
+    /// default around the surface point ([`Scene::motion_limits`]).
     #[serde(default)]
-    pub limits: LimitsSection,
+    pub limits: Option<LimitsSection>,
+}
+
+/// The robot's motion limits, each optional (`node::MotionLimits` gives the defaults and the
+/// ceilings).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsSection {
+    /// Lower corner of the workspace box, base frame [m]. Default: surface point − 0.25 m.
+    pub workspace_min_m: Option<[f64; 3]>,
+    /// Upper corner of the workspace box, base frame [m]. Default: surface point + 0.25 m.
+    pub workspace_max_m: Option<[f64; 3]>,
+    /// Largest commanded step per tick [m]. Default 0.001 (1 m/s at 1 kHz); at most 0.01.
+    pub max_step_m: Option<f64>,
+    /// Largest commanded speed [m/s]. Default 1; at most 2.
+    pub max_speed_m_per_s: Option<f64>,
+    /// Largest jump of a command's lag from the session's first [s]. Default 10; 0.1 to 60.
+    pub max_clock_jump_s: Option<f64>,
 }
 
 /// Ground truth of the simulated object (thesis set-up 1), keyed as the issue fixes them.

@@ -238,3 +238,44 @@ fn a_file_cloud_needs_a_path_and_a_rigid_pose() {
     let s = with_cloud("[cloud]\nsource = \"ros2\"\nstale_ms = 100.0").unwrap();
     assert_eq!((s.cloud.source, s.cloud.stale_ms), (CloudKind::Ros2, 100.0));
 }
+
+#[test]
+fn motion_limits_default_around_the_surface_and_a_limits_section_is_checked() {
+    let exp1 = Scene::exp1();
+    let l = exp1.telerobot_settings().limits;
+    assert_eq!(l, node::MotionLimits::around(exp1.surface.point_m));
+    assert_eq!(l.validate(), Ok(()));
+    let text = |limits: &str| {
+        let base = include_str!("../../../scenes/exp1.toml");
+        format!("{base}\n[limits]\n{limits}\n")
+    };
+    let s = Scene::from_toml(
+        &text("max_speed_m_per_s = 0.3\nworkspace_max_m = [0.1, 0.1, 0.2]"),
+        "t.toml",
+    )
+    .unwrap();
+    let l = s.motion_limits();
+    assert_eq!(l.max_speed_m_per_s, 0.3);
+    assert_eq!(l.workspace_max_m, [0.1, 0.1, 0.2]);
+    assert_eq!(l.workspace_min_m, [-0.25; 3]);
+    for (limits, field) in [
+        ("max_step_m = 1.0", "limits.max_step_m = 1"),
+        ("max_speed_m_per_s = 1e308", "limits.max_speed_m_per_s"),
+        ("max_clock_jump_s = 0", "limits.max_clock_jump_s"),
+        ("workspace_max_m = [-0.3, 0.1, 0.1]", "axis 0"),
+        // A box that leaves out the surface point, where the tool starts.
+        (
+            "workspace_min_m = [0.1, 0.1, 0.1]",
+            "containing surface.point_m",
+        ),
+        ("bogus = 1", "unknown field"),
+    ] {
+        let e = Scene::from_toml(&text(limits), "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.toml") && e.contains(field),
+            "{limits}: {e}"
+        );
+    }
+}

@@ -74,6 +74,47 @@ fn positive(name: &'static str, v: f64) -> Result<(), SceneError> {
 }
 
 impl Scene {
+    /// The motion limits: each within `node::MotionLimits`'s ceilings, the box containing the
+    /// surface point (where the tool starts).
+    fn validate_limits(&self) -> Result<(), SceneError> {
+        use node::guard::LimitsError;
+        let l = self.motion_limits();
+        let name = |e: &LimitsError| match e {
+            LimitsError::Workspace { .. } => "limits.workspace_min_m/workspace_max_m",
+            LimitsError::Step(_) => "limits.max_step_m",
+            LimitsError::Speed(_) => "limits.max_speed_m_per_s",
+            LimitsError::ClockJump(_) => "limits.max_clock_jump_s",
+        };
+        let expected = |e: &LimitsError| match e {
+            LimitsError::Workspace { .. } => {
+                "finite corners, min < max on each axis, at most 4 m wide"
+            }
+            LimitsError::Step(_) => "> 0 and at most 0.01 m per tick",
+            LimitsError::Speed(_) => "> 0 and at most 2 m/s",
+            LimitsError::ClockJump(_) => "0.1 to 60 s",
+        };
+        if let Err(e) = l.validate() {
+            return Err(SceneError::Field {
+                origin: String::new(),
+                field: name(&e),
+                value: match e {
+                    LimitsError::Workspace { lo, hi, axis } => {
+                        format!("axis {axis}: [{lo}, {hi}]")
+                    }
+                    LimitsError::Step(v) | LimitsError::Speed(v) => format!("{v}"),
+                    LimitsError::ClockJump(ns) => format!("{}", ns as f64 * 1e-9),
+                },
+                expected: expected(&e),
+            });
+        }
+        field(
+            "limits.workspace_min_m/workspace_max_m",
+            (l.workspace_min_m, l.workspace_max_m),
+            l.contains(self.surface.point_m),
+            "a box containing surface.point_m",
+        )
+    }
+
     /// Every field against its range, section by section in the file's order: the first
     /// violation is the error.
     pub(super) fn validate(&self) -> Result<(), SceneError> {
@@ -85,6 +126,7 @@ impl Scene {
         )?;
         self.validate_environment()?;
         self.validate_surface_and_proxy()?;
+        self.validate_limits()?;
         field(
             "rates.control_hz",
             self.rates.control_hz,
@@ -95,8 +137,7 @@ impl Scene {
         if self.cloud.source == CloudKind::Plane {
             self.validate_cloud()?;
         }
-        self.validate_model()?;
-        self.validate_limits()
+        self.validate_model()
     }
 
     /// `[environment]`: signs, the Karnopp order, physical upper limits, and what an anchored

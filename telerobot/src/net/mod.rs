@@ -50,6 +50,9 @@ pub struct NetConfig {
     pub identity: Identity,
     /// Operator certificates allowed to connect (exact DER match).
     pub trusted_operators: Vec<CertificateDer<'static>>,
+    /// Where each trusted certificate came from (a file name), in the same order; may be empty.
+    /// With the certificate's fingerprint it names the operator in control to a refused one.
+    pub trusted_labels: Vec<String>,
     /// What the operator must render; sent in the `Welcome`.
     pub scene: SceneSummary,
     /// quinn settings ([`LinkTuning::default`] for the rig).
@@ -74,6 +77,7 @@ impl NetConfig {
             listen,
             identity,
             trusted_operators,
+            trusted_labels: Vec::new(),
             scene,
             tuning: LinkTuning::default(),
             handshake_timeout: Duration::from_secs(10),
@@ -146,6 +150,8 @@ type Claims = claim::Claims<Bells, quinn::Connection>;
 
 /// What every connection task shares.
 struct Context {
+    /// Trusted certificates (DER) and where each came from.
+    trusted: Vec<(Vec<u8>, String)>,
     shared: Arc<link::Shared>,
     claims: Arc<Claims>,
     scene: SceneSummary,
@@ -172,7 +178,18 @@ impl Server {
     /// Accepts operators until `shutdown` completes, then closes every connection
     /// ([`CloseCode::Shutdown`]) and waits (≤ 1 s) for the peers to be told.
     pub async fn serve(self, io: NetIo, shutdown: impl Future<Output = ()>) {
+        let trusted = self
+            .config
+            .trusted_operators
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let label = self.config.trusted_labels.get(i).cloned();
+                (c.to_vec(), label.unwrap_or_default())
+            })
+            .collect();
         let context = Arc::new(Context {
+            trusted,
             shared: io.shared,
             claims: Claims::new(
                 Bells {

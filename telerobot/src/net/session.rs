@@ -54,10 +54,10 @@ pub(super) async fn run(connection: Connection, context: &Context) {
         Err(refusal) => return refuse(&connection, send, refusal, context).await,
     };
     let operator = hello.operator_name;
+    let certificate = peer_certificate(&connection);
     let contender = Contender {
-        // How a refused operator is told who is in control: today the name from the Hello.
-        name: operator.clone(),
-        certificate: peer_certificate(&connection),
+        name: identity_of(&operator, certificate.as_deref(), &context.trusted),
+        certificate,
         connection: connection.clone(),
     };
     let mut control = match context.claims.claim(contender).await {
@@ -294,5 +294,20 @@ async fn send_cloud(
             let _ = send.reset(STALE_CLOUD_CODE);
             CloudOutcome::Superseded
         }
+    }
+}
+
+/// How an operator is named to others: `'NAME' (certificate FILE, sha256:…)` — the certificate
+/// is the identity (the name in the `Hello` is self-chosen, "operator" by default for everyone).
+fn identity_of(name: &str, certificate: Option<&[u8]>, trusted: &[(Vec<u8>, String)]) -> String {
+    let Some(der) = certificate else {
+        return format!("'{name}' (no certificate)");
+    };
+    let fingerprint = transport::identity::fingerprint(der);
+    match trusted.iter().find(|(c, _)| c == der) {
+        Some((_, file)) if !file.is_empty() => {
+            format!("'{name}' (certificate {file}, {fingerprint})")
+        }
+        _ => format!("'{name}' (certificate {fingerprint})"),
     }
 }
