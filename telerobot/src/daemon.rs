@@ -18,21 +18,20 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
-use node::TelerobotSettings;
 use node::telerobot::TelerobotNode;
+use node::{GuardStats, MotionLimits, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
-use sim::camera::Camera;
-use sim::scene::{CloudKind, Scene};
-use sim::world::World;
+use sim::scene::Scene;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
 use crate::net::{self, NetConfig, TelerobotLink};
+use crate::robot::{self, RobotConfig};
 use crate::watch::{CommandGaps, GuardLog};
 
 /// How often the housekeeping thread wakes.
@@ -63,6 +62,12 @@ pub struct RunConfig {
     pub periodic: PeriodicConfig,
     /// `SCHED_FIFO` priority of the loop thread, if wanted (needs `CAP_SYS_NICE`).
     pub realtime_priority: Option<u8>,
+    /// Which robot: the simulated world or a ROS 2 robot.
+    pub robot: RobotConfig,
+    /// The motion limits every bridge sits behind (`node::guard`): the scene's `[limits]`
+    /// (`Scene::motion_limits`), the command line's flags over them. The node's settings take
+    /// them too (its playout-time check).
+    pub limits: MotionLimits,
 }
 
 impl RunConfig {
@@ -110,6 +115,20 @@ pub enum DaemonError {
     /// The simulated world could not be built from the scene.
     #[error("simulated world: {0}")]
     Sim(#[from] sim::SimError),
+    /// The ROS 2 graph or an endpoint on it.
+    #[error(transparent)]
+    Ros2(#[from] ros2::GraphError),
+    /// The scene's cloud file.
+    #[error(transparent)]
+    CloudFile(#[from] camera::CloudFileError),
+    /// `[cloud] source = "ros2"` is not wired into the daemon yet.
+    #[error(
+        "[cloud] source = \"ros2\": not supported by the telerobot daemon yet (use \"file\" or \"plane\")"
+    )]
+    Ros2Cloud,
+    /// The command limits.
+    #[error(transparent)]
+    Limits(#[from] node::guard::LimitsError),
     /// The server could not start.
     #[error(transparent)]
     Net(#[from] net::NetError),
@@ -156,6 +175,10 @@ pub struct Summary {
     pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
+    /// The ROS 2 bridge's report (`--robot ros2`).
+    pub robot: Option<ros2::BridgeReport>,
+    /// The ROS 2 camera's counters (`[cloud] source = "ros2"`).
+    pub ros2_camera: Option<ros2::CameraReport>,
 }
 
 /// [`LoopSnapshot`] for reports.
@@ -172,7 +195,9 @@ pub struct SnapshotReport {
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
     /// The motion guard's counters over every session.
-    pub guard: node::GuardStats,
+    pub guard: GuardStats,
+    /// New robot samples the node stepped on.
+    pub fresh_samples: u64,
 }
 
 /// A running telerobot daemon.
@@ -187,6 +212,8 @@ pub struct Telerobot {
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
+    robot: Option<ros2::BridgeMonitor>,
+    ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
 }
 
 /// The network side: its runtime and the QUIC server serving the loop's hand-off.
@@ -229,43 +256,53 @@ impl Network {
     }
 }
 
-/// The camera thread, when the scene has a cloud: it renders frames of the scene's geometry
-/// into `feed` and sends them on `link`.
-fn start_camera(
-    config: &RunConfig,
-    feed: &Arc<CameraFeed>,
-    link: &TelerobotLink,
-    stop: &Shutdown,
-) -> Result<Option<JoinHandle<()>>, DaemonError> {
-    if config.scene.cloud.source == CloudKind::None {
-        return Ok(None);
-    }
-    let geometry = World::new(&config.scene, config.start_m, config.seed)?;
-    let camera = camera::spawn(
-        Camera::new(&config.scene, config.seed),
-        geometry,
-        Arc::clone(feed),
-        link.clone(),
-        stop.clone(),
-    )
-    .map_err(io("the camera thread"))?;
-    Ok(Some(camera))
-}
-
 /// What the housekeeping thread shares.
 struct Housekeeping {
     snapshot: Mutex<LoopSnapshot>,
 }
 
+impl Housekeeping {
+    /// Before the loop's first snapshot: the tool where it starts.
+    fn new(tool_m: [f64; 3]) -> Housekeeping {
+        Housekeeping {
+            snapshot: Mutex::new(LoopSnapshot {
+                tool_m,
+                ..LoopSnapshot::default()
+            }),
+        }
+    }
+}
+
+/// The start log: where the daemon listens, what it drives and the command limits.
+fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, robot: &str) {
+    let l = &config.limits;
+    tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+        period_us = periodic.period_ns / 1000, spin_us = periodic.spin_ns / 1000,
+        "telerobot running ({robot})");
+    tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
+        max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
+        max_clock_jump_s = l.max_clock_jump_ns as f64 * 1e-9,
+        state_timeout_ms = MotionLimits::STATE_TIMEOUT_NS as f64 * 1e-6,
+        "motion limits (every limit that acts is counted and logged once per episode)");
+}
+
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let settings = config.scene.telerobot_settings();
+        let mut settings = config.scene.telerobot_settings();
+        settings.limits = config.limits;
         let start = config.start_m;
         let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge: Box<dyn node::RobotBridge> =
-            Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
-        let bridge = node::Guarded::new(bridge, settings.limits);
+        config.limits.validate()?;
+        let built = robot::build(
+            &config.robot,
+            &config.scene,
+            &settings,
+            start,
+            config.seed,
+            None,
+        )?;
+        let bridge = node::Guarded::new(built.bridge, settings.limits);
         let periodic_config = PeriodicConfig {
             period_ns: settings.period_ns,
             ..config.periodic
@@ -276,7 +313,8 @@ impl Telerobot {
         let network = Network::start(&config, net_io)?;
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = start_camera(&config, &feed, &link, &stop)?;
+        let (camera, camera_counters) =
+            camera::start(&config, built.graph.as_ref(), &feed, &link, &stop)?;
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
@@ -287,6 +325,7 @@ impl Telerobot {
             node,
             settings: settings.clone(),
             bridge,
+            outlet: built.outlet,
             link: link.clone(),
             camera: Arc::clone(&feed),
             spares: Arc::clone(&spares),
@@ -298,12 +337,7 @@ impl Telerobot {
             control.run(periodic)
         })
         .map_err(io("the loop thread"))?;
-        let shared = Arc::new(Housekeeping {
-            snapshot: Mutex::new(LoopSnapshot {
-                tool_m: start,
-                ..LoopSnapshot::default()
-            }),
-        });
+        let shared = Arc::new(Housekeeping::new(start));
         let keeper = Keeper {
             settings,
             spares,
@@ -317,9 +351,7 @@ impl Telerobot {
             outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
-        tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
-            period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
-            "telerobot running (simulated bridge)");
+        log_start(&config, network.addr, &periodic_config, &built.description);
         Ok(Telerobot {
             network,
             stop,
@@ -331,6 +363,8 @@ impl Telerobot {
             feed,
             timing,
             scene: config.scene,
+            robot: built.monitor,
+            ros2_camera: camera_counters,
         })
     }
 
@@ -399,6 +433,7 @@ impl Telerobot {
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
                 guard: last.guard,
+                fresh_samples: last.fresh_samples,
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
@@ -407,6 +442,8 @@ impl Telerobot {
             link: self.link.stats().into(),
             outages,
             parameters,
+            robot: self.robot.as_ref().map(|m| m.report()),
+            ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
         };
         let t = &summary.timing;
         tracing::info!(
