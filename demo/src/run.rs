@@ -45,6 +45,11 @@ pub struct DemoConfig {
     pub via_shim: bool,
     /// The recorder both sides record to (one file), if the demo records.
     pub record: Option<record::RecordSink>,
+    /// The telerobot's scene. Default the built-in exp-1 scene.
+    pub scene: Scene,
+    /// The telerobot's robot. Default its simulated world; `ros2` drives a robot on a ROS 2
+    /// graph (the test arm, in the ROS 2 figures).
+    pub robot: telerobot::robot::RobotConfig,
     /// Where the operator streams its records as the run goes (the demo's `--out`).
     pub stream_to: Option<rt::OutDir>,
 }
@@ -59,6 +64,8 @@ impl Default for DemoConfig {
             realtime_priority: None,
             via_shim: true,
             record: None,
+            scene: Scene::exp1(),
+            robot: telerobot::robot::RobotConfig::Sim,
             stream_to: None,
         }
     }
@@ -158,7 +165,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         ..PeriodicConfig::default()
     };
     let loopback: SocketAddr = ([127, 0, 0, 1], 0).into();
-    let scene = Scene::exp1();
+    let scene = config.scene.clone();
     let telerobot = Telerobot::start(telerobot::RunConfig {
         listen: loopback,
         identity: Identity::read_pem(certs.dir.path(), "telerobot")?,
@@ -168,6 +175,8 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         )],
         tuning: tuning.clone(),
         start_m: telerobot::RunConfig::default_start(&scene),
+        limits: scene.motion_limits(),
+        robot: config.robot.clone(),
         scene: scene.clone(),
         seed: config.seed,
         periodic,

@@ -9,7 +9,11 @@
 //! - [`MotionGuard`]: clamps a [`Target`] to the limits, counts each limit's ticks and episodes
 //!   (an episode is a run of consecutive ticks in which the limit acts: the owner logs once per
 //!   episode, off the real-time thread, from [`GuardStats`]).
-//! - [`Guarded`]: any [`RobotBridge`] behind a guard. A reading that is not finite is a fault:
+//! - [`Guarded`]: any [`RobotBridge`] behind a guard. Nothing is commanded before the robot has
+//!   reported a state (its position unknown, a target could be anywhere), and a state older than
+//!   [`MotionLimits::STATE_TIMEOUT_NS`] (50 ms, `DESIGN.md` §12) holds the last command still (a
+//!   robot that went silent is not driven blind; [`Guarded::state_is_stale`] tells the loop to
+//!   stop estimating meanwhile). A reading that is not finite is a fault:
 //!   the bridge is asked to recover ([`RobotBridge::recover`], the simulated world is rebuilt at
 //!   the last finite tool position) and the fault is counted. [`Guarded::begin_session`] checks the
 //!   bridge at each new session, so that one session cannot leave state that harms the next.
@@ -19,7 +23,7 @@
 use mmt::vec3::{self, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::bridge::{BridgeSample, RobotBridge, Target};
+use crate::bridge::{BridgeSample, Reading, RobotBridge, Target};
 
 /// Limits on what the robot is told to do.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -55,6 +59,10 @@ impl MotionLimits {
     pub const SPEED_CEILING_M_PER_S: f64 = 2.0;
     /// The largest workspace half-width any settings may allow \[m\] (a large arm's reach).
     pub const WORKSPACE_CEILING_M: f64 = 2.0;
+    /// A robot state older than this holds the robot (not a setting) \[ns\]: 50 ms
+    /// (`DESIGN.md` §12), fifty ticks at 1 kHz and several periods of a robot's state topic
+    /// (100 Hz to 1 kHz).
+    pub const STATE_TIMEOUT_NS: i64 = 50_000_000;
 
     /// The defaults: a box [`Self::HALF_WIDTH_M`] either side of `centre_m` on every axis.
     pub fn around(centre_m: Vec3) -> MotionLimits {
@@ -160,6 +168,11 @@ pub struct GuardStats {
     pub faults: u64,
     /// Faults the bridge recovered from (the simulated world rebuilt).
     pub recovered: u64,
+    /// Ticks with nothing commanded: the robot had not reported a state yet.
+    pub no_state_ticks: u64,
+    /// The robot's newest state was older than [`MotionLimits::STATE_TIMEOUT_NS`]: the last
+    /// command held still.
+    pub stale_state: LimitCount,
 }
 
 /// Clamps targets to [`MotionLimits`].
@@ -252,6 +265,26 @@ impl MotionGuard {
         }
     }
 
+    /// Holds the last commanded position (the robot's `tool_m` if none) at rest: what a stale
+    /// state commands. The limits do not act meanwhile.
+    pub fn hold(&mut self, target: &Target, tool_m: Vec3) -> Target {
+        let position = self
+            .last_m
+            .or_else(|| vec3::is_finite(tool_m).then_some(tool_m))
+            .unwrap_or_else(|| centre(&self.limits));
+        let [w, s, v] = &mut self.acting;
+        self.stats.workspace.record(false, w);
+        self.stats.step.record(false, s);
+        self.stats.speed.record(false, v);
+        self.last_m = Some(position);
+        Target {
+            position_m: position,
+            velocity_m_per_s: [0.0; 3],
+            command_sample_time_ns: target.command_sample_time_ns,
+            holding: true,
+        }
+    }
+
     fn fault(&mut self, recovered: bool) {
         self.stats.faults += 1;
         self.stats.recovered += u64::from(recovered);
@@ -271,23 +304,48 @@ pub struct Guarded<B> {
     safe_m: Vec3,
     /// The last reading was finite.
     healthy: bool,
+    /// When the newest finite state was read \[ns, loop clock\].
+    state_ns: Option<i64>,
+    /// The state is stale now (for the episode count).
+    stale: bool,
+    /// What the bridge was told on the last tick (`None`: nothing).
+    commanded: Option<Target>,
+    /// The last tick's time \[ns, loop clock\].
+    tick_ns: i64,
 }
 
 impl<B: RobotBridge> Guarded<B> {
     /// `bridge` behind a guard for `limits`.
     pub fn new(bridge: B, limits: MotionLimits) -> Guarded<B> {
         let tool = bridge.tool_m();
-        let safe_m = if vec3::is_finite(tool) && limits.contains(tool) {
-            tool
-        } else {
-            centre(&limits)
+        let safe_m = match tool {
+            Some(t) if vec3::is_finite(t) && limits.contains(t) => t,
+            _ => centre(&limits),
         };
         Guarded {
             bridge,
             guard: MotionGuard::new(limits),
             safe_m,
-            healthy: vec3::is_finite(tool),
+            healthy: tool.is_none_or(vec3::is_finite),
+            state_ns: None,
+            stale: false,
+            commanded: None,
+            tick_ns: 0,
         }
+    }
+
+    /// Whether the robot's newest state is older than [`MotionLimits::STATE_TIMEOUT_NS`] at
+    /// `now_ns`: the guard holds the robot, and the loop estimates nothing from it. A bridge
+    /// that has not read yet but knows its tool (a simulator before its first tick) is not
+    /// stale.
+    pub fn state_is_stale(&self, now_ns: i64) -> bool {
+        self.state_ns
+            .is_some_and(|t| now_ns.saturating_sub(t) > MotionLimits::STATE_TIMEOUT_NS)
+    }
+
+    /// What the bridge was told on the last tick, after the limits (`None`: nothing).
+    pub fn commanded(&self) -> Option<&Target> {
+        self.commanded.as_ref()
     }
 
     /// The guard's counters.
@@ -306,7 +364,7 @@ impl<B: RobotBridge> Guarded<B> {
     pub fn begin_session(&mut self) -> bool {
         self.guard.reseat();
         self.guard.acting = [false; 3];
-        let faulty = !self.healthy || !vec3::is_finite(self.bridge.tool_m());
+        let faulty = !self.healthy || self.bridge.tool_m().is_some_and(|t| !vec3::is_finite(t));
         if faulty {
             self.recover();
         }
@@ -318,30 +376,65 @@ impl<B: RobotBridge> Guarded<B> {
         self.guard.fault(recovered);
         self.healthy = recovered;
     }
-}
 
-impl<B: RobotBridge> RobotBridge for Guarded<B> {
-    fn tool_m(&self) -> Vec3 {
-        let tool = self.bridge.tool_m();
-        if vec3::is_finite(tool) {
-            tool
-        } else {
-            self.safe_m
-        }
-    }
-
-    fn step(&mut self, target: &Target) -> BridgeSample {
-        let limited = self.guard.limit(target, self.bridge.tool_m());
-        let sample = self.bridge.step(&limited);
+    /// A sample the bridge returned at `now_ns`: a new finite one is the robot's newest state; a
+    /// new one not finite is a fault; a repeated one, or none, says nothing.
+    fn observe(&mut self, now_ns: i64, sample: &BridgeSample) {
+        let time_ns = match sample.reading {
+            Reading::ThisTick => now_ns,
+            Reading::Stamped { sample_time_ns, .. } => sample_time_ns,
+            Reading::Repeated | Reading::Nothing => return,
+        };
         if sample.measured.is_finite() && vec3::is_finite(sample.tool_m) {
             self.healthy = true;
+            self.state_ns = Some(time_ns);
             if self.guard.limits.contains(sample.tool_m) {
                 self.safe_m = sample.tool_m;
             }
         } else {
             self.recover();
         }
+    }
+}
+
+impl<B: RobotBridge> RobotBridge for Guarded<B> {
+    fn tool_m(&self) -> Option<Vec3> {
+        let tool = self.bridge.tool_m()?;
+        Some(if vec3::is_finite(tool) {
+            tool
+        } else {
+            self.safe_m
+        })
+    }
+
+    fn step(&mut self, now_ns: i64, target: Option<&Target>) -> BridgeSample {
+        let tool = self.bridge.tool_m();
+        self.commanded = match (tool, target) {
+            (Some(tool), Some(target)) => {
+                let stale = self.state_is_stale(now_ns);
+                self.guard.stats.stale_state.record(stale, &mut self.stale);
+                Some(if stale {
+                    self.guard.hold(target, tool)
+                } else {
+                    self.guard.limit(target, tool)
+                })
+            }
+            (None, _) => {
+                self.guard.stats.no_state_ticks += 1;
+                None
+            }
+            (Some(_), None) => None,
+        };
+        self.tick_ns = now_ns;
+        let sample = self.bridge.step(now_ns, self.commanded.as_ref());
+        self.observe(now_ns, &sample);
         sample
+    }
+
+    fn next_reading(&mut self) -> Option<BridgeSample> {
+        let sample = self.bridge.next_reading()?;
+        self.observe(self.tick_ns, &sample);
+        Some(sample)
     }
 
     fn recover(&mut self, tool_m: Vec3) -> bool {
@@ -350,12 +443,16 @@ impl<B: RobotBridge> RobotBridge for Guarded<B> {
 }
 
 impl RobotBridge for Box<dyn RobotBridge> {
-    fn tool_m(&self) -> Vec3 {
+    fn tool_m(&self) -> Option<Vec3> {
         self.as_ref().tool_m()
     }
 
-    fn step(&mut self, target: &Target) -> BridgeSample {
-        self.as_mut().step(target)
+    fn step(&mut self, now_ns: i64, target: Option<&Target>) -> BridgeSample {
+        self.as_mut().step(now_ns, target)
+    }
+
+    fn next_reading(&mut self) -> Option<BridgeSample> {
+        self.as_mut().next_reading()
     }
 
     fn recover(&mut self, tool_m: Vec3) -> bool {

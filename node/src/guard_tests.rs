@@ -147,15 +147,15 @@ struct Fragile {
 }
 
 impl RobotBridge for Fragile {
-    fn tool_m(&self) -> Vec3 {
-        self.tool_m
+    fn tool_m(&self) -> Option<Vec3> {
+        Some(self.tool_m)
     }
-    fn step(&mut self, target: &Target) -> BridgeSample {
+    fn step(&mut self, _now_ns: i64, target: Option<&Target>) -> BridgeSample {
         self.steps += 1;
         self.tool_m = if self.steps > self.poison_after {
             [f64::NAN; 3]
         } else {
-            target.position_m
+            target.map_or(self.tool_m, |t| t.position_m)
         };
         BridgeSample {
             measured: crate::RobotSample {
@@ -164,6 +164,7 @@ impl RobotBridge for Fragile {
             },
             tool_m: self.tool_m,
             object_slide_m: [0.0; 2],
+            reading: Reading::ThisTick,
         }
     }
     fn recover(&mut self, tool_m: Vec3) -> bool {
@@ -191,16 +192,16 @@ fn fragile(poison_after: u32, recoverable: bool) -> Fragile {
 fn a_reading_that_is_not_finite_is_a_fault_the_bridge_recovers_from() {
     let mut g = Guarded::new(fragile(3, true), limits());
     for k in 1..=3 {
-        let s = g.step(&target([0.001 * k as f64, 0.0, 0.0], [0.0; 3]));
+        let s = g.step(0, Some(&target([0.001 * k as f64, 0.0, 0.0], [0.0; 3])));
         assert!(s.measured.is_finite());
     }
-    let s = g.step(&target([0.004, 0.0, 0.0], [0.0; 3]));
+    let s = g.step(0, Some(&target([0.004, 0.0, 0.0], [0.0; 3])));
     assert!(!s.measured.is_finite());
     // Recovered at the last finite position, counted once.
     assert_eq!(g.bridge().recovered_at, vec![[0.003, 0.0, 0.0]]);
     assert_eq!((g.stats().faults, g.stats().recovered), (1, 1));
-    assert_eq!(g.tool_m(), [0.003, 0.0, 0.0]);
-    let s = g.step(&target([0.004, 0.0, 0.0], [0.0; 3]));
+    assert_eq!(g.tool_m(), Some([0.003, 0.0, 0.0]));
+    let s = g.step(0, Some(&target([0.004, 0.0, 0.0], [0.0; 3])));
     assert!(s.measured.is_finite());
     // Healthy at the next session: nothing to do.
     assert!(!g.begin_session());
@@ -210,12 +211,135 @@ fn a_reading_that_is_not_finite_is_a_fault_the_bridge_recovers_from() {
 #[test]
 fn a_bridge_that_cannot_recover_is_reported_at_every_session_and_never_trusted() {
     let mut g = Guarded::new(fragile(0, false), limits());
-    g.step(&target([0.001, 0.0, 0.0], [0.0; 3]));
+    g.step(0, Some(&target([0.001, 0.0, 0.0], [0.0; 3])));
     assert_eq!((g.stats().faults, g.stats().recovered), (1, 0));
     // Its position is not finite: the guard reports the last safe one.
-    assert_eq!(g.tool_m(), [0.0; 3]);
+    assert_eq!(g.tool_m(), Some([0.0; 3]));
     assert!(g.begin_session());
     assert_eq!(g.stats().faults, 2);
+}
+
+const MS: i64 = 1_000_000;
+
+/// A robot whose states arrive when the test says, stamped (a ROS 2 robot's, say).
+#[derive(Default)]
+struct Remote {
+    /// The newest state the robot reported.
+    state: Option<Vec3>,
+    /// A state to hand over on the next step: when it was read, where the tool was.
+    arriving: Option<(i64, Vec3)>,
+    /// What the bridge was told, tick by tick.
+    told: Vec<Option<Target>>,
+}
+
+impl RobotBridge for Remote {
+    fn tool_m(&self) -> Option<Vec3> {
+        self.state
+    }
+    fn step(&mut self, _now_ns: i64, target: Option<&Target>) -> BridgeSample {
+        self.told.push(target.copied());
+        let Some((t, p)) = self.arriving.take() else {
+            return BridgeSample {
+                reading: if self.state.is_some() {
+                    Reading::Repeated
+                } else {
+                    Reading::Nothing
+                },
+                ..BridgeSample::default()
+            };
+        };
+        self.state = Some(p);
+        BridgeSample {
+            measured: crate::RobotSample {
+                position_m: p,
+                ..Default::default()
+            },
+            tool_m: p,
+            object_slide_m: [0.0; 2],
+            reading: Reading::Stamped {
+                sample_time_ns: t,
+                command_sample_time_ns: 0,
+            },
+        }
+    }
+}
+
+#[test]
+fn nothing_is_commanded_before_the_robots_first_state() {
+    let mut g = Guarded::new(Remote::default(), limits());
+    assert_eq!(g.tool_m(), None);
+    for k in 0..10 {
+        g.step(k * MS, Some(&target([0.0, 0.0, 0.01], [0.0; 3])));
+        assert!(g.commanded().is_none());
+    }
+    assert!(g.bridge().told.iter().all(Option::is_none));
+    assert_eq!(g.stats().no_state_ticks, 10);
+    // A state that is not finite is not a state (and is a fault).
+    g.bridge.arriving = Some((10 * MS, [f64::NAN, 0.0, 0.0]));
+    g.step(10 * MS, None);
+    assert_eq!(g.stats().faults, 1);
+    g.bridge.arriving = Some((11 * MS, [0.0, 0.0, 0.01]));
+    g.step(11 * MS, None);
+    g.bridge.arriving = Some((12 * MS, [0.0, 0.0, 0.01]));
+    g.step(12 * MS, Some(&target([0.0, 0.0, 0.0101], [0.0; 3])));
+    let told = g.bridge().told.last().unwrap().unwrap();
+    assert!(vec3::norm(vec3::sub(told.position_m, [0.0, 0.0, 0.0101])) < 1e-12);
+    // The tick that brought the bad state still had none; none counted since.
+    assert_eq!(g.stats().no_state_ticks, 11);
+}
+
+#[test]
+fn a_stale_state_holds_the_last_command_until_the_state_returns() {
+    let mut g = Guarded::new(Remote::default(), limits());
+    g.bridge.arriving = Some((0, [0.0, 0.0, 0.01]));
+    g.step(0, None);
+    let mut p = [0.0, 0.0, 0.01];
+    for k in 1..=50 {
+        p[0] += 0.0001; // 0.1 m/s
+        g.step(k * MS, Some(&target(p, [0.1, 0.0, 0.0])));
+        let c = g.commanded().unwrap();
+        assert!(!c.holding && c.position_m == p, "tick {k}");
+        assert!(!g.state_is_stale(k * MS));
+    }
+    // No state since t = 0: at 50 ms it is still fresh (the timeout is "older than 50 ms").
+    let held = p;
+    for k in 51..100 {
+        p[0] += 0.0001;
+        g.step(k * MS, Some(&target(p, [0.1, 0.0, 0.0])));
+        let c = g.commanded().unwrap();
+        assert!(c.holding && c.position_m == held, "tick {k}");
+        assert_eq!(c.velocity_m_per_s, [0.0; 3]);
+        assert!(g.state_is_stale(k * MS));
+    }
+    assert_eq!(
+        g.stats().stale_state,
+        LimitCount {
+            ticks: 49,
+            episodes: 1
+        }
+    );
+    // The state returns: the target is far now, so the step limit ramps to it.
+    g.bridge.arriving = Some((100 * MS, [0.005, 0.0, 0.01]));
+    g.step(100 * MS, None);
+    assert!(!g.state_is_stale(100 * MS));
+    g.step(101 * MS, Some(&target(p, [0.0; 3])));
+    let step = vec3::norm(vec3::sub(g.commanded().unwrap().position_m, held));
+    assert!((step - MotionLimits::MAX_STEP_M).abs() < 1e-12, "{step}");
+    assert_eq!(g.stats().step.episodes, 1);
+    assert_eq!(g.stats().stale_state.episodes, 1);
+}
+
+#[test]
+fn a_new_session_limits_from_the_robot_not_the_last_session() {
+    let mut g = Guarded::new(Remote::default(), limits());
+    g.bridge.arriving = Some((0, [0.0; 3]));
+    g.step(0, None);
+    g.step(MS, Some(&target([0.0005, 0.0, 0.0], [0.0; 3])));
+    assert!(!g.begin_session());
+    g.bridge.arriving = Some((2 * MS, [0.1, 0.0, 0.0]));
+    g.step(2 * MS, None);
+    g.step(3 * MS, Some(&target([0.1, 0.0, 0.0], [0.0; 3])));
+    assert_eq!(g.commanded().unwrap().position_m, [0.1, 0.0, 0.0]);
 }
 
 mod properties {

@@ -48,13 +48,15 @@ impl ReplayBridge {
 }
 
 impl RobotBridge for ReplayBridge {
-    fn tool_m(&self) -> [f64; 3] {
-        self.ticks
-            .get(self.next.min(self.ticks.len().saturating_sub(1)))
-            .map_or([0.0; 3], |t| t.tool_m)
+    fn tool_m(&self) -> Option<[f64; 3]> {
+        Some(
+            self.ticks
+                .get(self.next.min(self.ticks.len().saturating_sub(1)))
+                .map_or([0.0; 3], |t| t.tool_m),
+        )
     }
 
-    fn step(&mut self, _target: &Target) -> BridgeSample {
+    fn step(&mut self, _now_ns: i64, _target: Option<&Target>) -> BridgeSample {
         let Some(t) = self.ticks.get(self.next).or(self.ticks.last()) else {
             return BridgeSample::default();
         };
@@ -63,6 +65,8 @@ impl RobotBridge for ReplayBridge {
             measured: t.sample(),
             tool_m: t.tool_m,
             object_slide_m: t.object_slide_m,
+            // Replayed as the simulator read it: in the tick.
+            reading: node::Reading::ThisTick,
         }
     }
 }

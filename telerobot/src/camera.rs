@@ -1,5 +1,6 @@
-//! The camera thread: the scene's simulated depth camera at its frame rate, off the real-time
-//! thread (`DESIGN.md` §2: nothing in the 1 kHz loop allocates).
+//! The camera thread: the scene's cloud source — the simulated depth camera at its frame rate,
+//! a PLY/PCD file ([`file`]) or a camera on a ROS 2 graph (`ros2::camera`) — off the real-time thread (`DESIGN.md` §2: nothing in the 1 kHz
+//! loop allocates).
 //!
 //! ```text
 //!  1 kHz loop ──CameraPose (latest value)──▶ camera thread: Camera::frame → CloudIndex::build
@@ -17,6 +18,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use mmt::cloud::CloudError;
 use mmt::contact::CloudIndex;
 use node::cloud_to_wire;
 use rt::Shutdown;
@@ -27,6 +29,12 @@ use transport::Mailbox;
 use crate::net::TelerobotLink;
 use record::schema::CloudRec;
 use record::{Message, RecordSink, Side};
+
+pub mod file;
+mod start;
+
+pub use file::{CloudFileError, FileCloud, FileCloudInfo};
+pub(crate) use start::start;
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);
@@ -73,12 +81,32 @@ impl CameraFeed {
     }
 }
 
-/// Starts the camera thread: `camera` (the scene's, seeded) and `geometry`, a copy of the scene's
-/// world the camera reads the surface frame from (never stepped). It stops when `shutdown` is
-/// triggered.
+/// Where the camera thread's frames come from.
+pub enum Source {
+    /// The scene's simulated camera (seeded) and a copy of the scene's world it reads the
+    /// surface frame from (never stepped).
+    Simulated(Box<Camera>, Box<World>),
+    /// A PLY or PCD file, loaded at start.
+    File(Box<FileCloud>),
+    /// A camera's PointCloud2 topic on a ROS 2 graph.
+    Ros2(Box<ros2::CameraSource>),
+}
+
+impl Source {
+    fn frame(&mut self, p: &CameraPose) -> Result<Option<mmt::cloud::CloudFrame>, CloudError> {
+        match self {
+            Source::Simulated(camera, geometry) => {
+                camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m)
+            }
+            Source::File(file) => file.frame(p.now_ns, &p.object_offset_m),
+            Source::Ros2(camera) => Ok(camera.poll(rt::monotonic_ns())),
+        }
+    }
+}
+
+/// Starts the camera thread on `source`. It stops when `shutdown` is triggered.
 pub fn spawn(
-    camera: Camera,
-    geometry: World,
+    source: Source,
     feed: Arc<CameraFeed>,
     link: TelerobotLink,
     record: Option<RecordSink>,
@@ -86,12 +114,11 @@ pub fn spawn(
 ) -> io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("camera".to_owned())
-        .spawn(move || run(camera, &geometry, &feed, &link, record.as_ref(), &shutdown))
+        .spawn(move || run(source, &feed, &link, record.as_ref(), &shutdown))
 }
 
 fn run(
-    mut camera: Camera,
-    geometry: &World,
+    mut source: Source,
     feed: &CameraFeed,
     link: &TelerobotLink,
     record: Option<&RecordSink>,
@@ -104,8 +131,13 @@ fn run(
         if let Some(p) = feed.pose.take() {
             pose = Some(p);
         }
-        let Some(p) = pose else { continue };
-        match camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m) {
+        let Some(p) = pose.or_else(|| {
+            // A real camera does not wait for the robot's first state.
+            matches!(source, Source::Ros2(_)).then(CameraPose::default)
+        }) else {
+            continue;
+        };
+        match source.frame(&p) {
             Ok(Some(frame)) => match CloudIndex::build(&frame) {
                 Ok(index) => {
                     frame_id += 1;

@@ -34,6 +34,7 @@ pub struct Cli {
 
 /// Subcommands.
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once at start; boxing buys nothing
 pub enum Command {
     /// Make the telerobot's certificate and key (DIR/telerobot.crt, DIR/telerobot.key).
     GenCert(GenCertArgs),
@@ -84,6 +85,9 @@ pub struct RunArgs {
     /// Recording and live view.
     #[command(flatten)]
     pub record: record::cli::RecordArgs,
+    /// The robot and its command limits.
+    #[command(flatten)]
+    pub robot: crate::robot::RobotArgs,
 }
 
 /// Why the command line could not be turned into a [`RunConfig`].
@@ -111,6 +115,9 @@ pub enum ConfigError {
     /// `--spin-us` is out of range.
     #[error("--spin-us {0}: expected 0 to 200 µs")]
     Spin(f64),
+    /// A robot option.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotArgsError),
 }
 
 impl RunConfig {
@@ -124,7 +131,13 @@ impl RunConfig {
                         file: file.clone(),
                         error,
                     })?;
-                Scene::from_toml(&text, &file)?
+                let mut scene = Scene::from_toml(&text, &file)?;
+                // A cloud file is named relative to the scene file.
+                if let Some(cloud) = scene.cloud.path.take() {
+                    let resolved = crate::camera::file::resolve(&cloud, Some(path));
+                    scene.cloud.path = Some(resolved.display().to_string());
+                }
+                scene
             }
             None => Scene::exp1(),
         };
@@ -137,7 +150,11 @@ impl RunConfig {
             .iter()
             .map(|path| identity::read_cert(path).map(|cert| (path.clone(), cert)))
             .collect::<Result<_, _>>()?;
+        let robot = args.robot.robot_config()?;
+        let limits = args.robot.limits(&scene)?;
         Ok(RunConfig {
+            robot,
+            limits,
             listen: args.listen,
             identity,
             trusted_operators,

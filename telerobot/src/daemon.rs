@@ -20,24 +20,26 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
-use node::TelerobotSettings;
 use node::telerobot::TelerobotNode;
+use node::{GuardStats, MotionLimits, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
-use sim::camera::Camera;
-use sim::scene::{CloudKind, Scene};
-use sim::world::World;
+use sim::scene::Scene;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
 use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE};
 use crate::net::{self, NetConfig, TelerobotLink};
 use crate::recording::{self, Forward};
+use crate::robot::{self, RobotConfig};
 use crate::watch::{CommandGaps, GuardLog};
 use record::RecordSink;
+
+mod network;
+use network::Network;
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -70,6 +72,12 @@ pub struct RunConfig {
     /// The recorder (`--record`, `--live`), if the daemon records: every tick, camera frame,
     /// link statistics and session event goes to it off the loop, and the run's start and end.
     pub record: Option<RecordSink>,
+    /// Which robot: the simulated world or a ROS 2 robot.
+    pub robot: RobotConfig,
+    /// The motion limits every bridge sits behind (`node::guard`): the scene's `[limits]`
+    /// (`Scene::motion_limits`), the command line's flags over them. The node's settings take
+    /// them too (its playout-time check).
+    pub limits: MotionLimits,
 }
 
 impl RunConfig {
@@ -117,6 +125,20 @@ pub enum DaemonError {
     /// The simulated world could not be built from the scene.
     #[error("simulated world: {0}")]
     Sim(#[from] sim::SimError),
+    /// The ROS 2 graph or an endpoint on it.
+    #[error(transparent)]
+    Ros2(#[from] ros2::GraphError),
+    /// The scene's cloud file.
+    #[error(transparent)]
+    CloudFile(#[from] camera::CloudFileError),
+    /// `[cloud] source = "ros2"` is not wired into the daemon yet.
+    #[error(
+        "[cloud] source = \"ros2\": not supported by the telerobot daemon yet (use \"file\" or \"plane\")"
+    )]
+    Ros2Cloud,
+    /// The command limits.
+    #[error(transparent)]
+    Limits(#[from] node::guard::LimitsError),
     /// The server could not start.
     #[error(transparent)]
     Net(#[from] net::NetError),
@@ -163,6 +185,10 @@ pub struct Summary {
     pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
+    /// The ROS 2 bridge's report (`--robot ros2`).
+    pub robot: Option<ros2::BridgeReport>,
+    /// The ROS 2 camera's counters (`[cloud] source = "ros2"`).
+    pub ros2_camera: Option<ros2::CameraReport>,
 }
 
 /// [`LoopSnapshot`] for reports.
@@ -179,7 +205,9 @@ pub struct SnapshotReport {
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
     /// The motion guard's counters over every session.
-    pub guard: node::GuardStats,
+    pub guard: GuardStats,
+    /// New robot samples the node stepped on.
+    pub fresh_samples: u64,
 }
 
 /// A running telerobot daemon.
@@ -196,70 +224,25 @@ pub struct Telerobot {
     scene: Scene,
     /// The recorder, while the daemon records (the run's end goes to it).
     record: Option<RecordSink>,
+    robot: Option<ros2::BridgeMonitor>,
+    ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
 }
 
-/// The network side: its runtime and the QUIC server serving the loop's hand-off.
-struct Network {
-    runtime: tokio::runtime::Runtime,
-    server: tokio::task::JoinHandle<()>,
-    net_stop: Shutdown,
-    addr: SocketAddr,
-    pins: Arc<transport::OperatorPins>,
-}
-
-impl Network {
-    /// Binds the server on its own runtime and starts serving `net_io`.
-    fn start(config: &RunConfig, net_io: net::NetIo) -> Result<Network, DaemonError> {
-        let runtime =
-            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
-        let server = {
-            let _entered = runtime.enter();
-            net::bind(config.net_config())?
-        };
-        let addr = server
-            .local_addr()
-            .map_err(io("the server's local address"))?;
-        let pins = server.pins();
-        let net_stop = Shutdown::new();
-        let server = {
-            let stop = net_stop.clone();
-            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
-        };
-        for (path, _) in &config.trusted_operators {
-            tracing::info!(file = %path.display(), "trusting operator certificate");
-        }
-        Ok(Network {
-            runtime,
-            server,
-            net_stop,
-            addr,
-            pins,
-        })
-    }
-}
-
-/// The camera thread, when the scene has a cloud: it renders frames of the scene's geometry
-/// into `feed` and sends them on `link`.
-fn start_camera(
+/// The node's settings (with the run's motion limits, checked), a fresh node at the start
+/// position and the loop's schedule at the scene's rate.
+fn node_and_schedule(
     config: &RunConfig,
-    feed: &Arc<CameraFeed>,
-    link: &TelerobotLink,
-    stop: &Shutdown,
-) -> Result<Option<JoinHandle<()>>, DaemonError> {
-    if config.scene.cloud.source == CloudKind::None {
-        return Ok(None);
-    }
-    let geometry = World::new(&config.scene, config.start_m, config.seed)?;
-    let camera = camera::spawn(
-        Camera::new(&config.scene, config.seed),
-        geometry,
-        Arc::clone(feed),
-        link.clone(),
-        config.record.clone(),
-        stop.clone(),
-    )
-    .map_err(io("the camera thread"))?;
-    Ok(Some(camera))
+) -> Result<(TelerobotSettings, Box<TelerobotNode>, PeriodicConfig), DaemonError> {
+    let mut settings = config.scene.telerobot_settings();
+    settings.limits = config.limits;
+    let node = Box::new(TelerobotNode::new(settings.clone(), config.start_m)?);
+    config.limits.validate()?;
+    let periodic_config = PeriodicConfig {
+        period_ns: settings.period_ns,
+        ..config.periodic
+    };
+    periodic_config.validate()?;
+    Ok((settings, node, periodic_config))
 }
 
 /// What the housekeeping thread shares.
@@ -267,26 +250,52 @@ struct Housekeeping {
     snapshot: Mutex<LoopSnapshot>,
 }
 
+impl Housekeeping {
+    /// Before the loop's first snapshot: the tool where it starts.
+    fn new(tool_m: [f64; 3]) -> Housekeeping {
+        Housekeeping {
+            snapshot: Mutex::new(LoopSnapshot {
+                tool_m,
+                ..LoopSnapshot::default()
+            }),
+        }
+    }
+}
+
+/// The start log: where the daemon listens, what it drives and the command limits.
+fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, robot: &str) {
+    let l = &config.limits;
+    tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+        period_us = periodic.period_ns / 1000, spin_us = periodic.spin_ns / 1000,
+        "telerobot running ({robot})");
+    tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
+        max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
+        max_clock_jump_s = l.max_clock_jump_ns as f64 * 1e-9,
+        state_timeout_ms = MotionLimits::STATE_TIMEOUT_NS as f64 * 1e-6,
+        "motion limits (every limit that acts is counted and logged once per episode)");
+}
+
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let settings = config.scene.telerobot_settings();
         let start = config.start_m;
-        let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge: Box<dyn node::RobotBridge> =
-            Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
-        let bridge = node::Guarded::new(bridge, settings.limits);
-        let periodic_config = PeriodicConfig {
-            period_ns: settings.period_ns,
-            ..config.periodic
-        };
-        periodic_config.validate()?;
+        let (settings, node, periodic_config) = node_and_schedule(&config)?;
+        let built = robot::build(
+            &config.robot,
+            &config.scene,
+            &settings,
+            start,
+            config.seed,
+            None,
+        )?;
+        let bridge = node::Guarded::new(built.bridge, settings.limits);
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
         let network = Network::start(&config, net_io)?;
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = start_camera(&config, &feed, &link, &stop)?;
+        let (camera, camera_counters) =
+            camera::start(&config, built.graph.as_ref(), &feed, &link, &stop)?;
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
@@ -299,6 +308,7 @@ impl Telerobot {
             node,
             settings: settings.clone(),
             bridge,
+            outlet: built.outlet,
             link: link.clone(),
             camera: Arc::clone(&feed),
             spares: Arc::clone(&spares),
@@ -311,12 +321,7 @@ impl Telerobot {
             control.run(periodic)
         })
         .map_err(io("the loop thread"))?;
-        let shared = Arc::new(Housekeeping {
-            snapshot: Mutex::new(LoopSnapshot {
-                tool_m: start,
-                ..LoopSnapshot::default()
-            }),
-        });
+        let shared = Arc::new(Housekeeping::new(start));
         let keeper = Keeper {
             settings,
             spares,
@@ -331,9 +336,7 @@ impl Telerobot {
             outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
-        tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
-            period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
-            "telerobot running (simulated bridge)");
+        log_start(&config, network.addr, &periodic_config, &built.description);
         Ok(Telerobot {
             network,
             stop,
@@ -346,6 +349,8 @@ impl Telerobot {
             timing,
             scene: config.scene,
             record: config.record,
+            robot: built.monitor,
+            ros2_camera: camera_counters,
         })
     }
 
@@ -414,6 +419,7 @@ impl Telerobot {
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
                 guard: last.guard,
+                fresh_samples: last.fresh_samples,
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
@@ -422,6 +428,8 @@ impl Telerobot {
             link: self.link.stats().into(),
             outages,
             parameters,
+            robot: self.robot.as_ref().map(|m| m.report()),
+            ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
         };
         if let Some(sink) = &self.record {
             let ticks = end.as_ref().map_or(last.tick, |e| e.last.tick + 1);

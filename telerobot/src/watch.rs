@@ -38,6 +38,19 @@ impl GuardLog {
                 "the robot's state was not finite: the bridge was reset"
             );
         }
+        if g.stale_state.episodes > was.stale_state.episodes {
+            tracing::warn!(
+                session = s.session,
+                episodes = g.stale_state.episodes,
+                "no robot state for longer than 50 ms: holding the last commanded pose, \
+                 estimation paused until states return"
+            );
+        }
+        if was.no_state_ticks == 0 && g.no_state_ticks > 0 {
+            tracing::info!(
+                "waiting for the robot's first state: nothing is commanded until it comes"
+            );
+        }
         self.logged = g;
         // Refusals are the node's (one per session): logged once per session.
         let refused = s.node.implausible_commands;

@@ -145,6 +145,102 @@ fn run_line<'a>(extra: &[&'a str]) -> Vec<&'a str> {
     args
 }
 
+/// `run_line` with `extra`, parsed.
+fn run_args(extra: &[&str]) -> telerobot::cli::RunArgs {
+    let Command::Run(args) = parse(&run_line(extra)) else {
+        panic!()
+    };
+    args
+}
+
+#[test]
+fn robot_ros2_takes_the_domain_remappings_qos_and_conventions() {
+    use telerobot::robot::RobotConfig;
+    let args = run_args(&[
+        "--robot",
+        "ros2",
+        "--ros-domain",
+        "7",
+        "--topic",
+        "robot_pose=/franka_robot_state_broadcaster/current_pose",
+        "--topic",
+        "robot_twist=none",
+        "--topic",
+        "target_pose=/cartesian_impedance_controller/target_pose",
+        "--qos",
+        "state=reliable,keep-last-5",
+        "--wrench-sign",
+        "by-tool",
+        "--command-frame",
+        "fr3_link0",
+    ]);
+    let RobotConfig::Ros2 { graph, bridge } = args.robot.robot_config().unwrap() else {
+        panic!("expected ros2")
+    };
+    assert_eq!(graph.domain_id, 7);
+    assert_eq!(
+        bridge.topics.robot_pose.as_str(),
+        "/franka_robot_state_broadcaster/current_pose"
+    );
+    assert_eq!(
+        bridge.topics.target_pose.as_str(),
+        "/cartesian_impedance_controller/target_pose"
+    );
+    // No twist topic: the velocity comes from the pose.
+    assert!(bridge.topics.robot_twist.is_none() && !bridge.state.twist);
+    assert!(bridge.state_qos.reliable && bridge.state_qos.depth == 5);
+    assert!(!bridge.command_qos.reliable && bridge.settings_qos.transient_local);
+    assert_eq!(bridge.state.wrench_sign, ros2::state::WrenchSign::ByTool);
+    assert_eq!(bridge.command_frame.as_deref(), Some("fr3_link0"));
+    // The default: the scene's simulated world.
+    assert_eq!(
+        run_args(&[]).robot.robot_config().unwrap(),
+        RobotConfig::Sim
+    );
+}
+
+#[test]
+fn bad_robot_options_are_named() {
+    let error = |extra: &[&str]| {
+        let args = run_args(extra);
+        args.robot
+            .robot_config()
+            .map(|_| ())
+            .and_then(|()| args.robot.limits(&sim::scene::Scene::exp1()).map(|_| ()))
+            .unwrap_err()
+            .to_string()
+    };
+    for (extra, message) in [
+        (
+            &["--ros-domain", "3"][..],
+            "--ros-domain applies to --robot ros2 only",
+        ),
+        (
+            &["--robot", "ros2", "--ros-domain", "233"][..],
+            "--ros-domain",
+        ),
+        (
+            &["--robot", "ros2", "--topic", "robot_pos=/x"][..],
+            "robot_pos",
+        ),
+        (
+            &["--robot", "ros2", "--topic", "robot_pose=not a topic"][..],
+            "not a topic",
+        ),
+        (&["--robot", "ros2", "--qos", "state=fast"][..], "fast"),
+        (&["--workspace", "1,2"][..], "--workspace \"1,2\""),
+        (&["--max-step-m", "-0.001"][..], "max_step_m"),
+        (&["--workspace", "0.1,0,0,-0.1,1,1"][..], "workspace"),
+    ] {
+        let e = error(extra);
+        assert!(e.contains(message), "{extra:?}: {e}");
+    }
+    let e = Cli::try_parse_from(run_line(&["--robot", "ur"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("ur"), "{e}");
+}
+
 /// Log lines written to a pipe or a file carry no colour escapes (they did, whatever stderr was).
 #[test]
 fn logs_to_a_pipe_are_plain_text() {

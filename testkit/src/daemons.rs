@@ -58,6 +58,8 @@ fn telerobot_config(
             .collect(),
         tuning: tuning(delay_ms),
         start_m: telerobot::RunConfig::default_start(&scene),
+        limits: scene.motion_limits(),
+        robot: telerobot::robot::RobotConfig::Sim,
         scene,
         seed: 1,
         periodic: PeriodicConfig {

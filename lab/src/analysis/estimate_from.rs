@@ -183,7 +183,8 @@ fn replay(
         if tick.session != session {
             // The daemon swaps in a fresh node for a new operator (built where the robot held).
             if session != 0 {
-                node = TelerobotNode::new(settings.clone(), bridge.tool_m())?;
+                let tool = bridge.tool_m().unwrap_or([0.0; 3]);
+                node = TelerobotNode::new(settings.clone(), tool)?;
             }
             session = tick.session;
         }
@@ -196,7 +197,7 @@ fn replay(
                 None => replay.clouds.1 += 1,
             }
         }
-        let sample = bridge.step(&hold);
+        let sample = bridge.step(tick.t_ns, Some(&hold));
         node.step(tick.t_ns, tick.command_sample_time_ns, &sample.measured);
         replay.tick(&node, tick.session);
     }

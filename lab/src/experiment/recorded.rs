@@ -130,6 +130,7 @@ impl Recorded {
             measured: s.measured,
             tool_m: s.truth.position_m,
             object_slide_m: s.object_offset_m,
+            reading: node::Reading::ThisTick,
         };
         let mut tick = TelerobotTick::new(
             0,

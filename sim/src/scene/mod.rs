@@ -18,7 +18,7 @@
 //! point_m = [0.0, 0.0, 0.0]   # a point of the contact surface (the object's top)
 //! normal = [0.0, 0.0, 1.0]    # outward normal, any orientation
 //! [cloud]
-//! source = "plane"            # plane | none
+//! source = "plane"            # plane | file | ros2 | none (see `cloud`)
 //! size_m = [0.3, 0.3]
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
@@ -46,9 +46,11 @@
 //! max_clock_jump_s = 10.0
 //! ```
 
+mod cloud;
 mod settings;
 mod validate;
 
+pub use cloud::{CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS};
 pub use validate::SceneError;
 
 use crate::SensorNoise;
@@ -162,54 +164,6 @@ pub struct Surface {
     pub point_m: [f64; 3],
     /// Outward normal (normalised on validation).
     pub normal: [f64; 3],
-}
-
-/// Where the point cloud comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CloudSource {
-    /// `plane`: the object's contact face (large against the workspace); `none`: no cloud
-    /// (contact from the true geometry on the telerobot, remote contact on the operator).
-    pub source: CloudKind,
-    /// The camera's window on the face, along the surface's two tangents, centred on the tool
-    /// [m]. It must cover the tool's motion over a round trip: at 400 ms each way and 15 cm/s,
-    /// 12 cm.
-    pub size_m: [f64; 2],
-    /// Grid spacing [m]. Must be below `√2·(r1 + r2)/2` of the proxy.
-    pub spacing_m: f64,
-    /// Gaussian noise per coordinate [m].
-    pub noise_m: f64,
-    /// Fraction of points dropped per frame.
-    pub dropout: f64,
-    /// Camera rate [Hz].
-    pub rate_hz: f64,
-    /// The cloud follows the object as it slides (new frames each `1/rate_hz`). A static cloud is
-    /// sent once.
-    pub moving: bool,
-}
-
-impl Default for CloudSource {
-    fn default() -> Self {
-        CloudSource {
-            source: CloudKind::Plane,
-            size_m: [0.3, 0.3],
-            spacing_m: 0.0045,
-            noise_m: 0.0005,
-            dropout: 0.0,
-            rate_hz: 30.0,
-            moving: true,
-        }
-    }
-}
-
-/// Point-cloud source kind.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CloudKind {
-    /// A noisy plane patch on the contact surface.
-    Plane,
-    /// No cloud.
-    None,
 }
 
 /// The model structure per axis and the estimation settings.

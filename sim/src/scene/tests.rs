@@ -179,6 +179,66 @@ fn physical_upper_limits_and_the_karnopp_bound_say_the_range() {
     }
 }
 
+/// The exp-1 scene with its `[cloud]` section replaced by `cloud`.
+fn with_cloud(cloud: &str) -> Result<Scene, SceneError> {
+    let start = EXP1_TOML.find("[cloud]").unwrap();
+    let end = start + EXP1_TOML[start..].find("\n[").unwrap() + 1;
+    let text = format!("{}{cloud}\n{}", &EXP1_TOML[..start], &EXP1_TOML[end..]);
+    Scene::from_toml(&text, "test.toml")
+}
+
+#[test]
+fn a_file_cloud_needs_a_path_and_a_rigid_pose() {
+    let s = with_cloud(
+        "[cloud]\nsource = \"file\"\npath = \"clouds/table.ply\"\nvoxel_m = 0.003\n\
+         max_points = 5000\nmoving = false\n\
+         pose = { translation_m = [0.5, 0.0, 0.2], quaternion_xyzw = [0.0, 0.0, 0.0, 1.0] }",
+    )
+    .unwrap();
+    let c = &s.cloud;
+    assert_eq!(c.source, CloudKind::File);
+    assert_eq!(c.path.as_deref(), Some("clouds/table.ply"));
+    assert_eq!(
+        (c.voxel_m, c.max_points, c.moving),
+        (Some(0.003), 5000, false)
+    );
+    assert_eq!(c.pose.pose().unwrap().translation_m, [0.5, 0.0, 0.2]);
+    // The plane's keys keep their defaults and are not checked for a file.
+    assert_eq!(c.rate_hz, 30.0);
+    for (cloud, message) in [
+        (
+            "[cloud]\nsource = \"file\"",
+            "cloud.path = None is out of range: expected a PLY or PCD file",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\n\
+             pose = { quaternion_xyzw = [0.0, 0.0, 0.0, 2.0] }",
+            "cloud.pose",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\nvoxel_m = 0.0",
+            "cloud.voxel_m = 0.0 is out of range",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\nmax_points = 0",
+            "cloud.max_points = 0 is out of range",
+        ),
+        (
+            "[cloud]\nsource = \"ros2\"\ntopic = \"camera/points\"",
+            "cloud.topic = Some(\"camera/points\") is out of range: expected an absolute topic",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npathh = \"a.ply\"",
+            "unknown field `pathh`",
+        ),
+    ] {
+        let e = with_cloud(cloud).unwrap_err().to_string();
+        assert!(e.contains(message), "{cloud}: {e}");
+    }
+    let s = with_cloud("[cloud]\nsource = \"ros2\"\nstale_ms = 100.0").unwrap();
+    assert_eq!((s.cloud.source, s.cloud.stale_ms), (CloudKind::Ros2, 100.0));
+}
+
 #[test]
 fn motion_limits_default_around_the_surface_and_a_limits_section_is_checked() {
     let exp1 = Scene::exp1();

@@ -133,7 +133,8 @@ impl Scene {
             (100.0..=20_000.0).contains(&self.rates.control_hz),
             "in [100, 20000] Hz",
         )?;
-        if self.cloud.source != CloudKind::None {
+        self.cloud.validate_external()?;
+        if self.cloud.source == CloudKind::Plane {
             self.validate_cloud()?;
         }
         self.validate_model()
@@ -275,7 +276,7 @@ impl Scene {
         )
     }
 
-    /// `[cloud]`, when a cloud is made: sizes, a spacing the proxy cannot slip through, the
+    /// `[cloud]`, when the simulated camera makes it: sizes, a spacing the proxy cannot slip through, the
     /// point budget, dropout and rate.
     fn validate_cloud(&self) -> Result<(), SceneError> {
         let c = &self.cloud;
