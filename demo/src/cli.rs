@@ -3,6 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use anyhow::Context as _;
 use clap::Parser;
 use operator::cli::RtArgs;
 use rt::Shutdown;
@@ -45,11 +46,28 @@ pub struct Cli {
     /// --delay-ms 0): the loopback latency figure.
     #[arg(long)]
     pub no_shim: bool,
+    /// Recording (both sides, one file) and live view.
+    #[command(flatten)]
+    pub record: record::cli::RecordArgs,
+    /// Pause and resume the recorder (file and live view) every S seconds, and print the
+    /// haptic-loop period while recording and while paused: what recording costs the loop,
+    /// measured in one run (needs --record or --live).
+    #[arg(long, value_name = "S")]
+    pub record_ab_s: Option<f64>,
 }
 
 /// Runs the demo, prints the report and writes its files.
 pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<()> {
-    let config = DemoConfig {
+    match args.record_ab_s {
+        Some(s) if !(s.is_finite() && (0.1..=3600.0).contains(&s)) => {
+            anyhow::bail!("--record-ab-s {s}: expected 0.1 to 3600 seconds")
+        }
+        Some(_) if args.record == record::cli::RecordArgs::default() => {
+            anyhow::bail!("--record-ab-s needs --record or --live")
+        }
+        _ => {}
+    }
+    let mut config = DemoConfig {
         delay_ms: args.delay_ms,
         seconds: args.seconds,
         spin_us: args.rt.spin_us,
@@ -60,9 +78,22 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     config.validate()?;
     // Checked before the run: a path that cannot be written must not cost the session.
     let dir = rt::OutDir::prepare(&args.out)?;
-    let config = DemoConfig {
-        stream_to: Some(dir.clone()),
-        ..config
+    config.stream_to = Some(dir.clone());
+    // Created (and checked) before the run; finished below, or dropped (closed) on an error.
+    let recorder = args.record.start(record::Kind::Demo, rt::monotonic_ns())?;
+    config.record = recorder.as_ref().map(record::Recorder::sink);
+    let live = recorder.as_ref().and_then(record::Recorder::live_addr);
+    say(
+        args.json,
+        out,
+        live.map(|a| format!("live view: open ws://{a} in Foxglove or Lichtblick")),
+    )?;
+    let toggler = match (args.record_ab_s, &config.record) {
+        (Some(s), Some(sink)) => Some(
+            record::cli::Toggler::start(sink.clone(), std::time::Duration::from_secs_f64(s))
+                .context("starting the record-ab thread")?,
+        ),
+        _ => None,
     };
     if !args.json {
         writeln!(
@@ -72,7 +103,10 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         )?;
         out.flush()?;
     }
-    let outcome = run(&config, shutdown)?;
+    let outcome = run(&config, shutdown);
+    drop(toggler);
+    let outcome = outcome?;
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
     for (name, bytes) in files(&outcome.report, &outcome.series)? {
         dir.write_atomic(&name, &bytes)?;
     }
@@ -85,6 +119,28 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
             dir.path().display()
         )?;
+    }
+    say(args.json, out, recorded.as_ref().map(record::cli::summary))?;
+    if let (Some(_), Some([on, off])) = (args.record_ab_s, outcome.record_periods) {
+        let line = format!(
+            "haptic loop period, recording: {on}\nhaptic loop period, paused:    {off}\n\
+             p99 difference (recording − paused): {:+.1} µs",
+            on.p99_us - off.p99_us
+        );
+        say(args.json, out, Some(line))?;
+    }
+    Ok(())
+}
+
+/// A line for the user: on stdout, or on stderr under `--json` (stdout is the report).
+fn say(json: bool, out: &mut dyn Write, line: Option<String>) -> anyhow::Result<()> {
+    if let Some(line) = line {
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
     }
     Ok(())
 }

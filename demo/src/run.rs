@@ -28,7 +28,7 @@ use operator::safety::SafetyConfig;
 use crate::report::{DemoReport, ShimReport};
 
 /// The demo's settings.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct DemoConfig {
     /// One-way delay each way \[ms\], 0 to 2000. Default 400 (the thesis's experiment 3).
     pub delay_ms: f64,
@@ -43,6 +43,8 @@ pub struct DemoConfig {
     /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
     /// operator connects to the telerobot directly: the loopback latency figure.
     pub via_shim: bool,
+    /// The recorder both sides record to (one file), if the demo records.
+    pub record: Option<record::RecordSink>,
     /// The telerobot's scene. Default the built-in exp-1 scene.
     pub scene: Scene,
     /// The telerobot's robot. Default its simulated world; `ros2` drives a robot on a ROS 2
@@ -61,6 +63,7 @@ impl Default for DemoConfig {
             seed: 1,
             realtime_priority: None,
             via_shim: true,
+            record: None,
             scene: Scene::exp1(),
             robot: telerobot::robot::RobotConfig::Sim,
             stream_to: None,
@@ -146,6 +149,8 @@ pub struct Outcome {
     pub report: DemoReport,
     /// The operator's series.
     pub series: metrics::Series,
+    /// With a recorder: the haptic-loop period while it recorded and while it was paused.
+    pub record_periods: Option<[rt::Summary; 2]>,
 }
 
 /// Runs the demo (about `seconds` plus a few seconds of set-up). `shutdown` ends it early.
@@ -176,6 +181,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         seed: config.seed,
         periodic,
         realtime_priority: config.realtime_priority,
+        record: config.record.clone(),
     })?;
     let shim = if config.via_shim {
         Some(start_shim(
@@ -200,13 +206,28 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     let mut operator = operator?;
     let shim_stats = shim_stats?;
     operator.report.experiment.telerobot_stats = summary.last.node;
+    operator.nodes.telerobot = summary.last.node;
+    let report = DemoReport {
+        run: operator.report.clone(),
+        telerobot: summary,
+        shim: shim_stats.as_ref().map(ShimReport::from),
+    };
+    if let Some(sink) = &config.record {
+        // Again, now with the telerobot's and the shim's figures: the reader takes the last.
+        let extra = [
+            ("telerobot", serde_json::to_value(&report.telerobot)),
+            ("shim", serde_json::to_value(report.shim)),
+        ];
+        let extra = extra
+            .into_iter()
+            .filter_map(|(k, v)| Some((k.to_owned(), v.ok()?)))
+            .collect();
+        operator.record_end_with(sink, extra);
+    }
     Ok(Outcome {
-        report: DemoReport {
-            run: operator.report,
-            telerobot: summary,
-            shim: shim_stats.as_ref().map(ShimReport::from),
-        },
+        report,
         series: operator.series,
+        record_periods: operator.record_periods,
     })
 }
 
@@ -274,6 +295,11 @@ fn operator_config(
             seed: config.seed,
             delay_ms: config.delay_ms,
         }),
+        // Each camera frame is recorded once, by the telerobot.
+        record: config
+            .record
+            .as_ref()
+            .map(record::RecordSink::without_clouds),
         stream_to: config.stream_to.clone(),
     }
 }

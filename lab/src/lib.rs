@@ -6,9 +6,10 @@
 //!   simulated clock (deterministic, faster than real time);
 //! - [`analysis`]: the analysis commands' computations (estimator figures, stress, work–precision);
 //! - [`report`] and [`plot`]: the files of a run (`report.json`, `series.csv`, force, error and
-//!   spectrum plots as SVG and PNG; the font lives here);
-//! - [`cli`]: the `mmt` binary's commands (`experiment`, `transfer`, `estimate`, `stress`,
-//!   `work-precision`, `contact-bench`).
+//!   spectrum plots as SVG and PNG; the font lives here); [`recorded`]: the same report computed
+//!   again from a run's recording (`mmt report FILE.mcap`);
+//! - [`cli`]: the `mmt` binary's commands (`experiment`, `report`, `transfer`, `estimate`,
+//!   `stress`, `work-precision`, `contact-bench`).
 //!
 //! What it is not: no numerics of its own (they are `mmt`'s), no node logic (`node`'s), no
 //! figures of its own (`metrics` computes them, for the networked operator too). Neither daemon
@@ -18,4 +19,5 @@ pub mod analysis;
 pub mod cli;
 pub mod experiment;
 pub mod plot;
+pub mod recorded;
 pub mod report;

@@ -23,6 +23,8 @@ enum Command {
     ContactBench(cli::contact_bench::Args),
     /// Reproduce thesis experiments 1–3 in-process (exp1, exp2, exp3).
     Experiment(cli::experiment::ExperimentArgs),
+    /// The report and plots of a recorded run, computed again from FILE.mcap.
+    Report(cli::report::ReportArgs),
     /// Renderer frequency response against the exact |F/X|.
     Transfer(cli::transfer::TransferArgs),
     /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::ContactBench(args) => cli::contact_bench::run(&args),
         Command::Experiment(args) => cli::experiment::run_cmd(args),
+        Command::Report(args) => cli::report::run(args),
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),
         Command::Stress(args) => cli::stress::run(args),

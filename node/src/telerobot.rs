@@ -16,7 +16,7 @@
 use std::sync::Arc;
 
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy, SurfaceFrame};
-use mmt::estimator::{AxisSample, Estimator, EstimatorError, EstimatorStats};
+use mmt::estimator::{AxisSample, Estimator, EstimatorError, EstimatorStats, Update};
 use mmt::model::Structure;
 use mmt::model::gates::Gated;
 use mmt::vec3;
@@ -47,7 +47,7 @@ pub struct CommandSample {
 }
 
 /// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TelerobotStats {
     /// Ticks stepped.
     pub ticks: u64,
@@ -93,6 +93,7 @@ pub struct TelerobotNode {
     last_frame: Option<SurfaceFrame>,
     shear_anchor: [f64; 2],
     reconstruction: Option<(f64, f64)>,
+    updates: [Option<Update>; 2],
     /// The session's first accepted command's lag (arrival − sample time) \[ns\].
     reference_lag_ns: Option<i64>,
     stats: TelerobotStats,
@@ -130,6 +131,7 @@ impl TelerobotNode {
             last_frame: None,
             shear_anchor: [0.0; 2],
             reconstruction: None,
+            updates: [None; 2],
             reference_lag_ns: None,
             stats: TelerobotStats::default(),
             settings,
@@ -210,6 +212,7 @@ impl TelerobotNode {
         self.out.clear();
         self.stats.ticks += 1;
         self.reconstruction = None;
+        self.updates = [None; 2];
         if !sample.is_finite() {
             self.stats.rejected_samples += 1;
             return &self.out;
@@ -253,6 +256,7 @@ impl TelerobotNode {
             // the force is clamped at 0, which the linear regression would read as low damping.
             let loaded = s.force_n - est.tare_n()[0] > NORMAL_LOADED_N;
             let u = est.step(t, &[s], in_contact && loaded);
+            self.updates[0] = Some(u);
             if let Some(g) = u.confirmed {
                 self.latest_normal = Some(g);
                 self.parameters_sent_ns = None;
@@ -275,6 +279,7 @@ impl TelerobotNode {
         }
         if let Some(est) = &mut self.tangential {
             let u = est.step(t, &samples, in_contact);
+            self.updates[1] = Some(u);
             if u.new_object {
                 self.model_id = est.model_id();
             }
@@ -405,6 +410,17 @@ impl TelerobotNode {
         [&self.normal, &self.tangential]
             .iter()
             .all(|e| e.as_ref().is_none_or(|e| e.is_confident()))
+    }
+
+    /// The datagrams of the last tick (what [`TelerobotNode::step`] returned).
+    pub fn datagrams(&self) -> &[Datagram] {
+        &self.out
+    }
+
+    /// What each estimator did this tick, `[normal, tangential]`: its gate verdict and any set
+    /// it confirmed (`None`: the scene has no such estimator, or the tick ran none).
+    pub fn updates(&self) -> [Option<Update>; 2] {
+        self.updates
     }
 
     /// This tick's `(Σ y², Σ (y − ψᵀθ̂)²)` of the tangential estimator, `θ̂` from before the

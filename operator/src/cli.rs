@@ -94,7 +94,8 @@ pub struct DevicesArgs {
 /// `operator run` options.
 #[derive(Clone, Debug, Args)]
 pub struct RunArgs {
-    /// The device: scripted:NAME, replay:FILE.csv, spacemouse or omega.
+    /// The device: scripted:NAME, replay:FILE.csv, replay:FILE.mcap (a recording), spacemouse
+    /// or omega.
     #[arg(long, value_name = "SPEC")]
     pub device: DeviceSpec,
     /// Time over which force ramps in after enabling [ms].

@@ -11,16 +11,24 @@
 //!   them every [`STREAM_FLUSH`]: a run killed with SIGKILL leaves both readable up to the last
 //!   flush (the series joins them: a measurement's `command_sample_time_ns` is
 //!   `start_ns + tick·period`, the first line's comment gives both).
+//! - with `--record`/`--live`, hands the same records, the clouds, the link statistics (10 Hz)
+//!   and the safety and device events (from the records' flags) to the recorder
+//!   ([`record::RecordSink`]): one batch per round, never waiting.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use metrics::networked::{MeasurementSample, TickSample};
 use mmt::cloud::{CloudFrame, Pose};
 use mmt::contact::CloudIndex;
 use node::operator::{OperatorConfig, OperatorNode};
-use protocol::telerobot_to_operator::Measurement;
+use record::schema::{
+    CloudRec, ContactRec, EventRec, Level, LinkRec, MeasurementRec, OperatorTick, ParametersRec,
+    SafetyFlags, StateSyncRec,
+};
+use record::{Message, RecordSink, Side, Timed};
 use rt::Shutdown;
 
 use crate::haptic::{Exchange, TickRecord};
@@ -33,6 +41,8 @@ const POLL: Duration = Duration::from_millis(2);
 const KEEP: usize = 4;
 /// Most ticks recorded: one hour at 1 kHz (about 200 MB); the report covers the first hour.
 pub const MAX_RECORDED_TICKS: usize = 3_600_000;
+/// How often the link statistics go to the recording.
+const LINK_EVERY: Duration = Duration::from_millis(100);
 
 /// How often the streamed records are flushed to the operating system.
 pub const STREAM_FLUSH: Duration = Duration::from_millis(250);
@@ -86,24 +96,24 @@ impl Streams {
         self.ticks.line(&self.line);
     }
 
-    fn measurement(&mut self, m: &MeasurementRecord) {
+    fn measurement(&mut self, m: &MeasurementRec) {
         use std::fmt::Write as _;
         self.line.clear();
-        let (p, f) = (m.message.position_m, m.message.force_on_tool_n);
+        let (p, f) = (m.position_m, m.force_on_tool_n);
         let _ = write!(
             self.line,
             "{},{},{},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{},{}",
             m.received_ns,
             m.offset_ns.map_or(String::new(), |o| o.to_string()),
-            m.message.command_sample_time_ns,
+            m.command_sample_time_ns,
             p[0],
             p[1],
             p[2],
             f[0],
             f[1],
             f[2],
-            u8::from(m.message.in_contact),
-            u8::from(m.message.estimator_stable)
+            u8::from(m.in_contact),
+            u8::from(m.estimator_stable)
         );
         self.measurements.line(&self.line);
     }
@@ -123,39 +133,34 @@ impl Streams {
     }
 }
 
-/// A measurement as received.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeasurementRecord {
-    /// The message.
-    pub message: Measurement,
-    /// When it arrived [ns, operator clock].
-    pub received_ns: i64,
-    /// The clock-offset estimate when it was taken (telerobot − operator) \[ns\].
-    pub offset_ns: Option<i64>,
-}
-
-/// Everything recorded during a run.
+/// Everything recorded during a run, for its report.
 #[derive(Debug, Default)]
 pub struct Recording {
     /// One record per tick, in tick order (gaps where the loop skipped ticks).
-    pub ticks: Vec<TickRecord>,
-    /// Measurements in arrival order.
-    pub measurements: Vec<MeasurementRecord>,
+    pub ticks: Vec<TickSample>,
+    /// Measurements in arrival order, each with the clock-offset estimate when it was taken.
+    pub measurements: Vec<MeasurementSample>,
     /// Tick records beyond [`MAX_RECORDED_TICKS`], not kept.
     pub ticks_not_kept: u64,
     /// Cloud frames indexed, and refused (bad points).
     pub clouds: (u64, u64),
     /// Nodes built for reconnections.
     pub reconnect_nodes: u64,
+    /// Haptic-loop periods (tick start to the next tick's start) while the recorder recorded
+    /// (`[0]`) and while it was paused (`[1]`): what recording and the live view cost the loop,
+    /// measured in one run (`demo --record-ab-s`). Empty without a recorder.
+    pub periods: [rt::Histogram; 2],
 }
 
 /// Starts the helper; `session` is the session of the loop's first node, `config` the operator
-/// node's settings for the nodes it builds. It stops (and returns the recording) at `stop`.
+/// node's settings for the nodes it builds, `record` the recorder, if the run records. It stops
+/// (and returns the recording) at `stop`.
 pub fn spawn(
     link: OperatorLink,
     exchange: Arc<Exchange>,
     session: u64,
     config: OperatorConfig,
+    record: Option<RecordSink>,
     streams: Option<Streams>,
     stop: Shutdown,
 ) -> std::io::Result<JoinHandle<Recording>> {
@@ -169,6 +174,14 @@ pub fn spawn(
                 config,
                 kept: VecDeque::with_capacity(KEEP + 1),
                 recording: Recording::default(),
+                record: record.map(|sink| Forward {
+                    sink,
+                    batch: Vec::new(),
+                    last: None,
+                    link_due: std::time::Instant::now(),
+                }),
+                last_position: [0.0; 3],
+                previous_tick: None,
                 streams,
             };
             while !stop.wait_timeout(POLL) {
@@ -189,7 +202,21 @@ struct Helper {
     config: OperatorConfig,
     kept: VecDeque<Arc<CloudIndex>>,
     recording: Recording,
+    record: Option<Forward>,
+    /// The commanded position of the last tick (where a reconnection's node starts).
+    last_position: [f64; 3],
+    /// The last tick's index and start [ns].
+    previous_tick: Option<(u64, i64)>,
     streams: Option<Streams>,
+}
+
+/// What goes to the recorder: this round's batch, and what the events are edges of.
+struct Forward {
+    sink: RecordSink,
+    batch: Vec<Timed>,
+    /// The previous tick's safety flags and device fault count.
+    last: Option<(SafetyFlags, u64)>,
+    link_due: std::time::Instant,
 }
 
 impl Helper {
@@ -197,30 +224,52 @@ impl Helper {
         self.cloud();
         self.sessions();
         while self.exchange.retired.take().is_some() {}
-        let r = &mut self.recording;
+        let recording = self.record.as_ref().is_some_and(|f| !f.sink.is_paused());
         while let Some(t) = self.exchange.ticks.take() {
+            self.last_position = t.position_m;
+            if let Some((index, started_ns)) = self.previous_tick
+                && self.record.is_some()
+                && t.index == index + 1
+            {
+                self.recording.periods[usize::from(!recording)].record(t.started_ns - started_ns);
+            }
+            self.previous_tick = Some((t.index, t.started_ns));
             if let Some(s) = &mut self.streams {
                 s.tick(&t);
             }
+            let r = &mut self.recording;
             if r.ticks.len() < MAX_RECORDED_TICKS {
-                r.ticks.push(t);
+                r.ticks.push(TickSample {
+                    index: t.index,
+                    position_m: t.position_m,
+                    force_n: t.force_n,
+                    in_contact: t.in_contact,
+                    rendering: t.rendering,
+                });
             } else {
                 r.ticks_not_kept += 1;
+            }
+            if let Some(f) = self.record.as_mut().filter(|_| recording) {
+                f.tick(&t);
             }
         }
         let offset_ns = self.link.stats().clock_offset_ns;
         while let Some(m) = self.link.measurement() {
-            let record = MeasurementRecord {
-                message: m.message,
-                received_ns: m.received_ns,
-                offset_ns,
-            };
+            let rec = MeasurementRec::new(m.session, &m.message, m.received_ns, offset_ns);
             if let Some(s) = &mut self.streams {
-                s.measurement(&record);
+                s.measurement(&rec);
             }
+            let r = &mut self.recording;
             if r.measurements.len() < MAX_RECORDED_TICKS {
-                r.measurements.push(record);
+                r.measurements.push(rec.sample());
             }
+            if let Some(f) = self.record.as_mut().filter(|_| recording) {
+                f.push(m.received_ns, Message::Measurement(Box::new(rec)));
+            }
+        }
+        if let Some(f) = self.record.as_mut().filter(|_| recording) {
+            f.link(&self.link);
+            f.flush();
         }
         if let Some(s) = &mut self.streams {
             s.flush(false);
@@ -232,6 +281,14 @@ impl Helper {
             return;
         };
         let wire = *received.message;
+        if let Some(f) = self.record.as_mut().filter(|f| f.sink.wants_clouds()) {
+            let cloud = CloudRec {
+                frame_id: wire.frame_id,
+                timestamp_ns: wire.timestamp_ns,
+                points: Arc::new(wire.points.clone()),
+            };
+            f.push(received.received_ns, Message::Cloud(Side::Operator, cloud));
+        }
         let index = CloudFrame::new(wire.points, wire.timestamp_ns, Pose::default())
             .ok()
             .and_then(|frame| CloudIndex::build(&frame).ok());
@@ -260,11 +317,7 @@ impl Helper {
             return;
         };
         self.session = session;
-        let position = self
-            .recording
-            .ticks
-            .last()
-            .map_or([0.0; 3], |t| t.position_m);
+        let position = self.last_position;
         let node = OperatorSettings::from_welcome(&welcome.scene)
             .map_err(|e| e.to_string())
             .and_then(|s| OperatorNode::new(s, self.config, position).map_err(|e| e.to_string()));
@@ -274,8 +327,111 @@ impl Helper {
                 self.recording.reconnect_nodes += 1;
                 tracing::info!(session, scene = %welcome.scene.name,
                     "reconnected: rendering starts again with the next model");
+                if let Some(f) = &mut self.record {
+                    f.event(
+                        rt::monotonic_ns(),
+                        Level::Info,
+                        "session",
+                        format!("session {session}: reconnected to the telerobot"),
+                    );
+                }
             }
             Err(e) => tracing::error!(session, "cannot set up the operator node: {e}"),
+        }
+    }
+}
+
+impl Forward {
+    fn push(&mut self, t_ns: i64, message: Message) {
+        self.batch.push(Timed { t_ns, message });
+    }
+
+    fn event(&mut self, t_ns: i64, level: Level, source: &'static str, text: String) {
+        self.push(
+            t_ns,
+            Message::Event(EventRec {
+                level,
+                source,
+                text,
+            }),
+        );
+    }
+
+    /// One tick: its record, the messages it took, and the safety and device events it began or
+    /// ended.
+    fn tick(&mut self, t: &TickRecord) {
+        let at = t.sample_time_ns;
+        let safety = SafetyFlags {
+            bits: t.safety_bits,
+        };
+        let (last_safety, last_faults) = self.last.unwrap_or_default();
+        for (rule, on) in last_safety.edges(safety) {
+            let (level, what) = if on {
+                (Level::Warning, "acting")
+            } else {
+                (Level::Info, "no longer acting")
+            };
+            self.event(at, level, "safety", format!("{rule}: {what}"));
+        }
+        if t.device_faults > last_faults {
+            self.event(
+                at,
+                Level::Error,
+                "device",
+                format!("device fault ({} so far): forces off", t.device_faults),
+            );
+        }
+        self.last = Some((safety, t.device_faults));
+        if let Some((p, received)) = &t.parameters {
+            let rec = ParametersRec::new(t.session, p, Some(*received));
+            self.push(at, Message::Parameters(Side::Operator, Box::new(rec)));
+        }
+        if let Some((c, received)) = &t.contact {
+            let rec = ContactRec::new(t.session, c, Some(*received));
+            self.push(at, Message::Contact(Side::Operator, Box::new(rec)));
+        }
+        if let Some((s, received)) = &t.state_sync {
+            let rec = StateSyncRec::new(t.session, s, Some(*received));
+            self.push(at, Message::StateSync(Side::Operator, Box::new(rec)));
+        }
+        let tick = OperatorTick {
+            session: t.session,
+            index: t.index,
+            sample_time_ns: t.sample_time_ns,
+            started_ns: t.started_ns,
+            device_position_m: t.device_m[0],
+            device_velocity_m_per_s: t.device_m[1],
+            command_position_m: t.position_m,
+            command_velocity_m_per_s: t.velocity_m_per_s,
+            force_rendered_n: t.force_n,
+            force_device_n: t.force_device_n,
+            in_contact: t.in_contact,
+            rendering: t.rendering,
+            proxy_m: t.proxy_m,
+            safety,
+            device_faults: t.device_faults,
+            ..OperatorTick::default()
+        };
+        self.push(at, Message::OperatorTick(Box::new(tick)));
+    }
+
+    /// The link statistics, every [`LINK_EVERY`].
+    fn link(&mut self, link: &OperatorLink) {
+        if self.link_due.elapsed() < LINK_EVERY {
+            return;
+        }
+        self.link_due = std::time::Instant::now();
+        let status = link.status();
+        let rec = LinkRec::new(status.connected(), status.session(), &link.stats());
+        self.push(
+            rt::monotonic_ns(),
+            Message::Link(Side::Operator, Box::new(rec)),
+        );
+    }
+
+    fn flush(&mut self) {
+        if !self.batch.is_empty() {
+            self.sink.send(std::mem::take(&mut self.batch));
         }
     }
 }

@@ -8,7 +8,8 @@
 //! ```
 //!
 //! The thread keeps the last few indices alive itself, so the loop never drops the last reference
-//! to one (freeing a kd-tree there would be a deallocation on the real-time thread).
+//! to one (freeing a kd-tree there would be a deallocation on the real-time thread). With
+//! `--record` or `--live` it hands each frame to the recorder too.
 
 use std::collections::VecDeque;
 use std::io;
@@ -26,6 +27,8 @@ use sim::world::World;
 use transport::Mailbox;
 
 use crate::net::TelerobotLink;
+use record::schema::CloudRec;
+use record::{Message, RecordSink, Side};
 
 pub mod file;
 mod start;
@@ -106,14 +109,21 @@ pub fn spawn(
     source: Source,
     feed: Arc<CameraFeed>,
     link: TelerobotLink,
+    record: Option<RecordSink>,
     shutdown: Shutdown,
 ) -> io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("camera".to_owned())
-        .spawn(move || run(source, &feed, &link, &shutdown))
+        .spawn(move || run(source, &feed, &link, record.as_ref(), &shutdown))
 }
 
-fn run(mut source: Source, feed: &CameraFeed, link: &TelerobotLink, shutdown: &Shutdown) {
+fn run(
+    mut source: Source,
+    feed: &CameraFeed,
+    link: &TelerobotLink,
+    record: Option<&RecordSink>,
+    shutdown: &Shutdown,
+) {
     let mut kept: VecDeque<Arc<CloudIndex>> = VecDeque::with_capacity(KEEP + 1);
     let mut frame_id = 0u64;
     let mut pose = None;
@@ -137,7 +147,16 @@ fn run(mut source: Source, feed: &CameraFeed, link: &TelerobotLink, shutdown: &S
                         kept.pop_front();
                     }
                     feed.index.push((frame_id, index));
-                    link.send_cloud(Box::new(cloud_to_wire(frame_id, frame)));
+                    let wire = cloud_to_wire(frame_id, frame);
+                    if let Some(sink) = record.filter(|s| s.wants_clouds()) {
+                        let cloud = CloudRec {
+                            frame_id,
+                            timestamp_ns: wire.timestamp_ns,
+                            points: Arc::new(wire.points.clone()),
+                        };
+                        sink.send_one(p.now_ns, Message::Cloud(Side::Telerobot, cloud));
+                    }
+                    link.send_cloud(Box::new(wire));
                     feed.frames.fetch_add(1, Relaxed);
                 }
                 Err(_) => {

@@ -2,9 +2,10 @@
 //! into config structs, and one function per subcommand.
 //!
 //! - `telerobot gen-cert --out DIR` — writes `DIR/telerobot.crt` and `DIR/telerobot.key`.
-//! - `telerobot run [--scene FILE] --listen ADDR --identity DIR --trust OPERATOR_CRT` — validates
-//!   the scene, the identity, the trusted certificates and the loop settings into a
-//!   [`RunConfig`] and runs the daemon ([`crate::run`]) until Ctrl-C.
+//! - `telerobot run [--scene FILE] --listen ADDR --identity DIR --trust OPERATOR_CRT
+//!   [--record FILE.mcap] [--live [ADDR]]` — validates the scene, the identity, the trusted
+//!   certificates and the loop settings into a [`RunConfig`] and runs the daemon
+//!   ([`crate::run`]) until Ctrl-C.
 
 use std::io::Write;
 use std::net::SocketAddr;
@@ -81,6 +82,9 @@ pub struct RunArgs {
     /// Run the loop thread under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
     #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
     pub realtime_priority: Option<u8>,
+    /// Recording and live view.
+    #[command(flatten)]
+    pub record: record::cli::RecordArgs,
     /// The robot and its command limits.
     #[command(flatten)]
     pub robot: crate::robot::RobotArgs,
@@ -163,6 +167,7 @@ impl RunConfig {
                 ..PeriodicConfig::default()
             },
             realtime_priority: args.realtime_priority,
+            record: None,
         })
     }
 }
@@ -176,9 +181,21 @@ pub fn gen_cert(args: &GenCertArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 }
 
 /// `telerobot run`: validates the configuration, then runs the daemon until `shutdown` (Ctrl-C
-/// or SIGTERM in the binary).
+/// or SIGTERM in the binary). With `--record`, the file is closed on every way out (the
+/// recorder is finished, or dropped on an error).
 pub fn run(args: &RunArgs, shutdown: Shutdown) -> anyhow::Result<()> {
-    let config = RunConfig::from_args(args)?;
+    let mut config = RunConfig::from_args(args)?;
+    let recorder = args
+        .record
+        .start(record::Kind::Telerobot, rt::monotonic_ns())?;
+    if let Some(addr) = recorder.as_ref().and_then(record::Recorder::live_addr) {
+        tracing::info!("live view: open ws://{addr} in Foxglove or Lichtblick");
+    }
+    config.record = recorder.as_ref().map(record::Recorder::sink);
     crate::run(config, shutdown)?;
+    if let Some(recorder) = recorder {
+        let report = recorder.finish()?;
+        tracing::info!("{}", record::cli::summary(&report));
+    }
     Ok(())
 }

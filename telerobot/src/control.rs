@@ -14,17 +14,21 @@
 //!    the tick; a ROS 2 robot's its header stamp; a tick that brought none, or a stale state,
 //!    steps nothing); its messages go to the network task's outbox while an operator is
 //!    connected;
-//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread.
+//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread; with `--record` or
+//!    `--live`, every tick a [`TickRecord`] too (plain values: the recording is written there).
 //!
-//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots and datagrams move
-//! through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old ones dropped, by
-//! the housekeeping thread ([`Spares`]).
+//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots, tick records and
+//! datagrams move through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old
+//! ones dropped, by the housekeeping thread ([`Spares`]).
 
 use std::sync::Arc;
 
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use node::{GuardStats, Guarded, Reading, RobotBridge, TelerobotSettings};
-use protocol::telerobot_to_operator::{ContactState, Datagram};
+use node::{BridgeSample, GuardStats, Guarded, Reading, RobotBridge, Target, TelerobotSettings};
+use protocol::telerobot_to_operator::{
+    Contact, ContactState, Datagram, Measurement, Parameters, StateSync,
+};
+use record::schema::EstimatorSnapshot;
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
@@ -57,6 +61,36 @@ pub struct LoopSnapshot {
     pub guard: GuardStats,
     /// Ticks whose bridge sample was new (the node stepped).
     pub fresh_samples: u64,
+}
+
+/// Tick records the housekeeping thread may lag behind by: 8 s at 1 kHz.
+pub const TICK_QUEUE: usize = 8192;
+
+/// What one tick did, for the recording: plain values (pushing one allocates nothing).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickRecord {
+    /// Tick number.
+    pub index: u64,
+    /// The tick's nominal time [ns].
+    pub now_ns: i64,
+    /// The session whose commands run.
+    pub session: u64,
+    /// Where the robot was sent.
+    pub target: Target,
+    /// What the bridge gave.
+    pub sample: BridgeSample,
+    /// Capture time of the camera frame installed this tick [ns].
+    pub cloud_captured_ns: Option<i64>,
+    /// The node's datagrams of the tick.
+    pub contact: Option<Contact>,
+    /// The measurement datagram.
+    pub measurement: Option<Measurement>,
+    /// The parameters datagram, when one was sent.
+    pub parameters: Option<Parameters>,
+    /// The state-sync datagram, when one was sent.
+    pub state_sync: Option<StateSync>,
+    /// The estimators, `[normal, tangential]`.
+    pub estimators: [Option<EstimatorSnapshot>; 2],
 }
 
 /// Fresh nodes for new sessions, and old nodes to drop, exchanged with the housekeeping thread.
@@ -92,6 +126,8 @@ pub(crate) struct ControlLoop {
     /// Command receipt − command sample time \[ns\] (one host: the uplink's one-way latency), to
     /// the housekeeping thread.
     pub(crate) command_latency: Arc<Mailbox<i64>>,
+    /// Every tick's record, to the housekeeping thread, while the run records.
+    pub(crate) records: Option<Arc<Mailbox<TickRecord>>>,
     pub(crate) shutdown: Shutdown,
 }
 
@@ -142,7 +178,9 @@ impl ControlLoop {
                 received_ns: c.received_ns,
             });
         }
+        let mut cloud_captured_ns = None;
         if let Some((frame_id, index)) = self.camera.index.take() {
+            cloud_captured_ns = Some(index.timestamp_ns());
             self.node.set_cloud(index, frame_id);
         }
         let wanted = self.bridge.tool_m().map(|tool| self.node.target(now, tool));
@@ -157,6 +195,22 @@ impl ControlLoop {
         self.use_sample(now, command_ns, &sample, state);
         while let Some(more) = self.bridge.next_reading() {
             self.use_sample(now, command_ns, &more, state);
+        }
+        if let Some(records) = &self.records {
+            records.push(tick_record(
+                &self.node,
+                [tick.index, state.session],
+                now,
+                // No target (no robot state yet): recorded as holding where the tool is.
+                target.unwrap_or(Target {
+                    position_m: sample.tool_m,
+                    velocity_m_per_s: [0.0; 3],
+                    command_sample_time_ns: 0,
+                    holding: true,
+                }),
+                sample,
+                cloud_captured_ns,
+            ));
         }
         state.tick = tick.index;
         state.now_ns = now;
@@ -255,4 +309,43 @@ impl State {
             fresh_samples: self.fresh_samples,
         }
     }
+}
+
+/// This tick's record for the recording: plain values, built on the stack.
+fn tick_record(
+    node: &TelerobotNode,
+    [index, session]: [u64; 2],
+    now_ns: i64,
+    target: Target,
+    sample: BridgeSample,
+    cloud_captured_ns: Option<i64>,
+) -> TickRecord {
+    let mut record = TickRecord {
+        index,
+        now_ns,
+        session,
+        target,
+        sample,
+        cloud_captured_ns,
+        contact: None,
+        measurement: None,
+        parameters: None,
+        state_sync: None,
+        estimators: [None; 2],
+    };
+    for d in node.datagrams() {
+        match *d {
+            Datagram::Contact(c) => record.contact = Some(c),
+            Datagram::Measurement(m) => record.measurement = Some(m),
+            Datagram::Parameters(p) => record.parameters = Some(p),
+            Datagram::StateSync(s) => record.state_sync = Some(s),
+        }
+    }
+    let [normal, tangential] = node.updates();
+    record.estimators = [
+        normal.zip(node.normal_estimator()),
+        tangential.zip(node.tangential_estimator()),
+    ]
+    .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
+    record
 }

@@ -9,7 +9,9 @@
 //! - `camera`: the simulated camera and its kd-tree ([`crate::camera`]);
 //! - `housekeeping`: everything the loop must not do — builds a spare node for the next session
 //!   (at the robot's current position), drops retired ones, keeps the latest loop snapshot for
-//!   [`Telerobot::snapshot`], and logs each session's end with its figures.
+//!   [`Telerobot::snapshot`], logs each session's end with its figures, and with `--record` or
+//!   `--live` hands the loop's tick records, the link statistics and the session events to the
+//!   recorder (the camera thread hands it the frames).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -29,10 +31,15 @@ use sim::scene::Scene;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
-use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
+use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE};
 use crate::net::{self, NetConfig, TelerobotLink};
+use crate::recording::{self, Forward};
 use crate::robot::{self, RobotConfig};
 use crate::watch::{CommandGaps, GuardLog};
+use record::RecordSink;
+
+mod network;
+use network::Network;
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
@@ -62,6 +69,9 @@ pub struct RunConfig {
     pub periodic: PeriodicConfig,
     /// `SCHED_FIFO` priority of the loop thread, if wanted (needs `CAP_SYS_NICE`).
     pub realtime_priority: Option<u8>,
+    /// The recorder (`--record`, `--live`), if the daemon records: every tick, camera frame,
+    /// link statistics and session event goes to it off the loop, and the run's start and end.
+    pub record: Option<RecordSink>,
     /// Which robot: the simulated world or a ROS 2 robot.
     pub robot: RobotConfig,
     /// The motion limits every bridge sits behind (`node::guard`): the scene's `[limits]`
@@ -212,48 +222,27 @@ pub struct Telerobot {
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
+    /// The recorder, while the daemon records (the run's end goes to it).
+    record: Option<RecordSink>,
     robot: Option<ros2::BridgeMonitor>,
     ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
 }
 
-/// The network side: its runtime and the QUIC server serving the loop's hand-off.
-struct Network {
-    runtime: tokio::runtime::Runtime,
-    server: tokio::task::JoinHandle<()>,
-    net_stop: Shutdown,
-    addr: SocketAddr,
-    pins: Arc<transport::OperatorPins>,
-}
-
-impl Network {
-    /// Binds the server on its own runtime and starts serving `net_io`.
-    fn start(config: &RunConfig, net_io: net::NetIo) -> Result<Network, DaemonError> {
-        let runtime =
-            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
-        let server = {
-            let _entered = runtime.enter();
-            net::bind(config.net_config())?
-        };
-        let addr = server
-            .local_addr()
-            .map_err(io("the server's local address"))?;
-        let pins = server.pins();
-        let net_stop = Shutdown::new();
-        let server = {
-            let stop = net_stop.clone();
-            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
-        };
-        for (path, _) in &config.trusted_operators {
-            tracing::info!(file = %path.display(), "trusting operator certificate");
-        }
-        Ok(Network {
-            runtime,
-            server,
-            net_stop,
-            addr,
-            pins,
-        })
-    }
+/// The node's settings (with the run's motion limits, checked), a fresh node at the start
+/// position and the loop's schedule at the scene's rate.
+fn node_and_schedule(
+    config: &RunConfig,
+) -> Result<(TelerobotSettings, Box<TelerobotNode>, PeriodicConfig), DaemonError> {
+    let mut settings = config.scene.telerobot_settings();
+    settings.limits = config.limits;
+    let node = Box::new(TelerobotNode::new(settings.clone(), config.start_m)?);
+    config.limits.validate()?;
+    let periodic_config = PeriodicConfig {
+        period_ns: settings.period_ns,
+        ..config.periodic
+    };
+    periodic_config.validate()?;
+    Ok((settings, node, periodic_config))
 }
 
 /// What the housekeeping thread shares.
@@ -289,11 +278,8 @@ fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, ro
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let mut settings = config.scene.telerobot_settings();
-        settings.limits = config.limits;
         let start = config.start_m;
-        let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        config.limits.validate()?;
+        let (settings, node, periodic_config) = node_and_schedule(&config)?;
         let built = robot::build(
             &config.robot,
             &config.scene,
@@ -303,11 +289,6 @@ impl Telerobot {
             None,
         )?;
         let bridge = node::Guarded::new(built.bridge, settings.limits);
-        let periodic_config = PeriodicConfig {
-            period_ns: settings.period_ns,
-            ..config.periodic
-        };
-        periodic_config.validate()?;
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
         let network = Network::start(&config, net_io)?;
@@ -318,9 +299,11 @@ impl Telerobot {
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
+        let records = recording::tick_mailbox(config.record.as_ref(), TICK_QUEUE);
         // Tick 0 a little ahead, so that the first deadline is not already late.
         let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
         let timing = periodic.timing();
+        recording::record_start(&config, periodic.start_ns(), settings.period_ns);
         let control = ControlLoop {
             node,
             settings: settings.clone(),
@@ -331,6 +314,7 @@ impl Telerobot {
             spares: Arc::clone(&spares),
             snapshots: Arc::clone(&snapshots),
             command_latency: Arc::clone(&command_latency),
+            records: records.clone(),
             shutdown: stop.clone(),
         };
         let control = rt::spawn("telerobot-loop", config.realtime_priority, move || {
@@ -348,6 +332,7 @@ impl Telerobot {
             spare_at: None,
             command_latency,
             latencies: Vec::new(),
+            record: config.record.clone().zip(records).map(Forward::new),
             outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
@@ -363,6 +348,7 @@ impl Telerobot {
             feed,
             timing,
             scene: config.scene,
+            record: config.record,
             robot: built.monitor,
             ros2_camera: camera_counters,
         })
@@ -445,6 +431,10 @@ impl Telerobot {
             robot: self.robot.as_ref().map(|m| m.report()),
             ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
         };
+        if let Some(sink) = &self.record {
+            let ticks = end.as_ref().map_or(last.tick, |e| e.last.tick + 1);
+            recording::record_end(sink, ticks, &summary);
+        }
         let t = &summary.timing;
         tracing::info!(
             ticks = t.ticks,
@@ -487,6 +477,7 @@ struct Keeper {
     spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
     latencies: Vec<i64>,
+    record: Option<Forward>,
     outages: CommandGaps,
 }
 
@@ -527,8 +518,14 @@ impl Keeper {
             }
             connected = now_connected;
             self.keep_spare(&last, now_connected);
+            if let Some(f) = &mut self.record {
+                f.round(&self.link);
+            }
         }
         self.drain_latencies();
+        if let Some(f) = &mut self.record {
+            f.round(&self.link);
+        }
         (self.latencies, self.outages.outages)
     }
 

@@ -21,6 +21,7 @@ pub mod cli;
 pub mod control;
 pub mod daemon;
 pub mod net;
+mod recording;
 pub mod robot;
 mod watch;
 

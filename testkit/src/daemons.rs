@@ -67,6 +67,7 @@ fn telerobot_config(
             ..PeriodicConfig::default()
         },
         realtime_priority: None,
+        record: None,
     }
 }
 
@@ -106,6 +107,7 @@ pub fn operator_config(
             seed: 1,
             delay_ms: known_delay_ms,
         }),
+        record: None,
         stream_to: None,
     }
 }

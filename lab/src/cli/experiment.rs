@@ -1,6 +1,6 @@
 //! `mmt experiment`: the thesis's experiments in-process.
 
-use crate::experiment::{ExperimentConfig, Kind, run};
+use crate::experiment::{ExperimentConfig, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
 use sim::scene::Scene;
@@ -51,6 +51,9 @@ pub struct ExperimentArgs {
     /// Datagrams sent ahead of their turn each way [%] (needs a delay).
     #[arg(long, default_value_t = 0.0)]
     reorder_pct: f64,
+    /// Recording and live view (on the simulated clock: faster than real time).
+    #[command(flatten)]
+    record: record::cli::RecordArgs,
 }
 
 /// The link's loss, duplication and reordering, checked as the user wrote them (percent) before
@@ -73,28 +76,7 @@ fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<(
 }
 
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
-    let kind = Kind::parse(&args.name)?;
-    let scene = match &args.scene {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
-            Scene::from_toml(&text, &path.display().to_string())?
-        }
-        None => Scene::exp1(),
-    };
-    let mut config = ExperimentConfig::new(kind, scene);
-    if let Some(d) = args.delay_ms {
-        config.delay_ms = d;
-    }
-    config.seconds = args.seconds;
-    config.seed = args.seed;
-    if let Some(t) = args.trajectory.clone() {
-        config.trajectory = t;
-    }
-    config.operator.local_contact = !args.remote_contact;
-    config.operator.state_sync = !args.no_sync;
-    config.jitter_ms = args.jitter_ms;
-    link_faults(&mut config, &args)?;
+    let config = config(&args)?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
@@ -108,11 +90,22 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     // Checked before the run: a path that cannot be written must not cost the run.
     let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
-    let (series, report) = run(&config, &mut |f| {
-        if let Some(bar) = &bar {
-            bar.set_position((f * 1000.0) as u64);
-        }
-    })?;
+    // Closed on every way out: finished below, or dropped with an error.
+    let recorder = args.record.start(record::Kind::Experiment, 0)?;
+    if let Some(addr) = recorder.as_ref().and_then(record::Recorder::live_addr) {
+        eprintln!("live view: open ws://{addr} in Foxglove or Lichtblick");
+    }
+    let sink = recorder.as_ref().map(record::Recorder::sink);
+    let (series, report) = run_recorded(
+        &config,
+        &mut |f| {
+            if let Some(bar) = &bar {
+                bar.set_position((f * 1000.0) as u64);
+            }
+        },
+        sink,
+    )?;
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
     let wall = started.elapsed().as_secs_f64();
     if let Some(bar) = &bar {
         bar.finish_and_clear();
@@ -132,6 +125,9 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
             serde_json::to_string_pretty(&timing)?.as_bytes(),
         )?;
     }
+    if let Some(r) = &recorded {
+        eprintln!("{}", record::cli::summary(r));
+    }
     if args.json {
         let mut v = serde_json::to_value(&report)?;
         v["wall_seconds"] = timing["wall_seconds"].clone();
@@ -148,6 +144,33 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The experiment the options describe.
+fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
+    let kind = Kind::parse(&args.name)?;
+    let scene = match &args.scene {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            Scene::from_toml(&text, &path.display().to_string())?
+        }
+        None => Scene::exp1(),
+    };
+    let mut config = ExperimentConfig::new(kind, scene);
+    if let Some(d) = args.delay_ms {
+        config.delay_ms = d;
+    }
+    config.seconds = args.seconds;
+    config.seed = args.seed;
+    if let Some(t) = &args.trajectory {
+        config.trajectory = t.clone();
+    }
+    config.operator.local_contact = !args.remote_contact;
+    config.operator.state_sync = !args.no_sync;
+    config.jitter_ms = args.jitter_ms;
+    link_faults(&mut config, args)?;
+    Ok(config)
 }
 
 #[cfg(test)]

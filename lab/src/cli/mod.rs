@@ -4,6 +4,7 @@ pub mod contact_bench;
 pub mod estimate;
 pub mod experiment;
 pub mod plot;
+pub mod report;
 pub mod stress;
 pub mod transfer;
 pub mod work_precision;

@@ -16,13 +16,14 @@
 //! measured while executing the command the operator sent at `t` is compared with the force the
 //! operator rendered at `t` — "rendered shifted back by the delay", exactly.
 
+mod recorded;
 mod run;
 
 pub use metrics::{
     Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series, analyse,
     parameter_report,
 };
-pub use run::run;
+pub use run::{run, run_recorded};
 
 use node::operator::OperatorConfig;
 use serde::{Deserialize, Serialize};

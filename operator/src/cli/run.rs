@@ -7,6 +7,9 @@ use std::path::PathBuf;
 use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
 
+use record::cli::RecordArgs;
+use record::{Kind, Recorder, RecorderReport};
+
 use crate::app::{self, Outcome, RunConfig};
 use crate::device::{DeviceSpec, OpenOptions};
 use crate::net::NetConfig;
@@ -30,6 +33,9 @@ pub struct LoopArgs {
     /// Loop options.
     #[command(flatten)]
     pub rt: RtArgs,
+    /// Recording and live view.
+    #[command(flatten)]
+    pub record: RecordArgs,
 }
 
 /// The real-time loop options of `run` (and of the demo, which runs both loops).
@@ -83,22 +89,61 @@ pub(super) fn run_cmd(
     shutdown: Shutdown,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
+    let periodic = args.periodic()?;
+    // On every exit from here (an error included) the recorder is finished or dropped, which
+    // closes the file.
+    let recorder = args.record.start(Kind::Operator, rt::monotonic_ns())?;
+    announce(recorder.as_ref(), args.json, out)?;
     let config = RunConfig {
         net,
         device,
         open,
         safety,
         seconds: args.seconds,
-        periodic: args.periodic()?,
+        periodic,
         realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
         node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
+        record: recorder.as_ref().map(Recorder::sink),
         stream_to: dir.clone(),
     };
     let outcome = app::run(config, shutdown)?;
-    emit(&outcome, dir.as_ref(), args.json, out)
+    let recorded = recorder.map(Recorder::finish).transpose()?;
+    emit(&outcome, dir.as_ref(), args.json, out)?;
+    report_recording(recorded.as_ref(), args.json, out)
+}
+
+/// Says where the live view is, when there is one.
+fn announce(recorder: Option<&Recorder>, json: bool, out: &mut dyn Write) -> anyhow::Result<()> {
+    if let Some(addr) = recorder.and_then(Recorder::live_addr) {
+        let line = format!("live view: open ws://{addr} in Foxglove or Lichtblick");
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
+    }
+    Ok(())
+}
+
+/// One line on what the recorder did (to stderr under `--json`).
+fn report_recording(
+    report: Option<&RecorderReport>,
+    json: bool,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    if let Some(r) = report {
+        let line = record::cli::summary(r);
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+        }
+    }
+    Ok(())
 }
 
 /// Prints the report (table or JSON) and writes the files (each atomically), printing first:

@@ -112,7 +112,7 @@ fn bad_device_values_fail_at_parse_time_with_the_allowed_forms() {
     let msg = e.to_string();
     assert!(
         msg.contains("'phantom'")
-            && msg.contains("scripted:NAME, replay:FILE.csv, spacemouse, omega"),
+            && msg.contains("scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"),
         "{msg}"
     );
 }

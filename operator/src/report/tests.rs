@@ -4,16 +4,14 @@ use crate::haptic::LoopEnd;
 
 fn facts() -> RunFacts {
     RunFacts {
-        experiment: "networked".into(),
-        scene: "exp1".into(),
-        left_out: Vec::new(),
-        device: "scripted:hold".into(),
-        seed: 0,
-        set_delay_ms: None,
+        run: metrics::networked::NetworkedRun {
+            experiment: "networked".into(),
+            scene: "exp1".into(),
+            device: "scripted:hold".into(),
+            period_ns: 1_000_000,
+            ..Default::default()
+        },
         truth: None,
-        start_ns: 0,
-        period_ns: 1_000_000,
-        final_offset_ns: None,
         link: LinkReport::default(),
         measurements_overwritten: 0,
         timing: TimingReport::default(),
@@ -124,8 +122,7 @@ fn renderer_counters_are_reported() {
 /// per session) and no figure gave the outage.
 #[test]
 fn an_outage_across_a_reconnect_is_counted_and_its_windows_marked() {
-    use crate::helper::MeasurementRecord;
-    use protocol::telerobot_to_operator::Measurement;
+    use metrics::networked::{MeasurementSample, TickSample};
     let f = facts();
     let spec = DeviceSpec::Scripted {
         name: "hold".into(),
@@ -145,25 +142,16 @@ fn an_outage_across_a_reconnect_is_counted_and_its_windows_marked() {
     let mut rec = Recording::default();
     // 10 s of ticks; measurements every ms but for 2.0 s to 7.5 s.
     for k in 0..10_000u64 {
-        rec.ticks.push(crate::haptic::TickRecord {
+        rec.ticks.push(TickSample {
             index: k,
             ..Default::default()
         });
-        let t = f.start_ns + k as i64 * f.period_ns;
+        let t = f.run.start_ns + k as i64 * f.run.period_ns;
         if !(2_000..7_500).contains(&k) {
-            rec.measurements.push(MeasurementRecord {
-                message: Measurement {
-                    header: protocol::Header::default(),
-                    command_sample_time_ns: t,
-                    position_m: [0.0; 3],
-                    velocity_m_per_s: [0.0; 3],
-                    force_on_tool_n: [0.0; 3],
-                    in_contact: false,
-                    estimator_stable: false,
-                    reconstruction: None,
-                },
+            rec.measurements.push(MeasurementSample {
+                command_sample_time_ns: t,
                 received_ns: t,
-                offset_ns: None,
+                ..Default::default()
             });
         }
     }

@@ -29,13 +29,17 @@ pub(crate) fn start(
     let Some(source) = source else {
         return Ok((None, None));
     };
-    let camera =
-        super::spawn(source, Arc::clone(feed), link.clone(), stop.clone()).map_err(|source| {
-            DaemonError::Io {
-                what: "the camera thread",
-                source,
-            }
-        })?;
+    let camera = super::spawn(
+        source,
+        Arc::clone(feed),
+        link.clone(),
+        config.record.clone(),
+        stop.clone(),
+    )
+    .map_err(|source| DaemonError::Io {
+        what: "the camera thread",
+        source,
+    })?;
     Ok((Some(camera), counters))
 }
 
