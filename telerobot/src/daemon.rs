@@ -174,6 +174,9 @@ pub struct Summary {
     pub command_latency: rt::Summary,
     /// Camera frames indexed and sent, and refused.
     pub camera_frames: (u64, u64),
+    /// Cloud frames handed whole to QUIC, superseded by a newer frame before they were (the
+    /// link or the operator could not take them yet: latest wins), and failed.
+    pub clouds: (u64, u64, u64),
     /// Commands lost to a full command queue.
     pub commands_overwritten: u64,
     /// Datagrams lost to a full outbox.
@@ -423,6 +426,7 @@ impl Telerobot {
             },
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
+            clouds: status.clouds(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),

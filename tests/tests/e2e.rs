@@ -370,6 +370,43 @@ fn the_operator_reconnects_when_the_telerobot_comes_back() {
     assert!(after > 2000, "{after} measurements in the last 3 s");
 }
 
+/// Found by the soak (2 % loss, 400 ms): each camera frame waited for a stream while the
+/// operator's stream limit was full, deaf to the newer frame that made it stale — 30 frames a
+/// second kept alive, memory growing by 1 MB/s. Now every frame is sent or superseded.
+#[test]
+fn frames_the_operator_cannot_take_yet_are_superseded_not_kept() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let rt = runtime();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    let raw = rt.block_on(async {
+        let mut raw =
+            RawOperator::connect(tr.local_addr(), &certs.operator, &certs.telerobot).await;
+        let answer = raw
+            .hello_wanting_clouds("reads-nothing", PROTOCOL_VERSION, true)
+            .await;
+        assert!(matches!(answer, t2o::Message::Welcome(_)), "{answer:?}");
+        // Never accepting a cloud stream: after 4 (its limit) the telerobot cannot open more.
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        raw
+    });
+    // Counted while the session runs: at the stop, frames still waiting fail with the
+    // connection, whatever they waited for.
+    let (sent, superseded, failed) = tr.link().status().clouds();
+    let summary = tr.stop();
+    drop(raw);
+    let (frames, _) = summary.camera_frames;
+    assert!(frames >= 30, "{frames} camera frames in 3 s");
+    assert!(
+        sent <= 5,
+        "{sent} frames sent to a peer whose stream limit is 4"
+    );
+    assert!(
+        sent + superseded + failed >= frames / 2,
+        "{frames} frames: {sent} sent, {superseded} superseded, {failed} failed — the rest kept"
+    );
+}
+
 #[test]
 fn a_version_mismatch_is_refused_naming_both_versions() {
     let _serial = serial();

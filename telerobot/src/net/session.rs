@@ -276,14 +276,23 @@ impl CloudSender {
     }
 }
 
+/// Sends one frame on a stream of its own, unless a newer frame makes it stale first: while
+/// the stream is being opened (the operator's stream limit is reached: its earlier frames are
+/// still arriving, as under loss) as well as while it is written. Waiting for the stream
+/// without listening for `stale` kept every frame of a lossy link alive — 30 a second, 1 MB/s
+/// of memory in the soak.
 async fn send_cloud(
     connection: &Connection,
     frame: Box<CloudFrame>,
-    stale: oneshot::Receiver<()>,
+    mut stale: oneshot::Receiver<()>,
 ) -> CloudOutcome {
     let bytes = t2o::encode(&t2o::Message::Cloud(*frame));
-    let Ok(mut send) = connection.open_uni().await else {
-        return CloudOutcome::Failed;
+    let mut send = tokio::select! {
+        opened = connection.open_uni() => match opened {
+            Ok(send) => send,
+            Err(_) => return CloudOutcome::Failed,
+        },
+        _ = &mut stale => return CloudOutcome::Superseded,
     };
     tokio::select! {
         written = framing::write_cloud(&mut send, &bytes) => match written {
