@@ -65,6 +65,10 @@ pub struct RunConfig {
     /// `ticks.csv` and `measurements.csv`, flushed every [`crate::helper::STREAM_FLUSH`], so
     /// that a killed run leaves them readable up to the last flush.
     pub stream_to: Option<rt::OutDir>,
+    /// A consumer of every tick and measurement as the run goes, and how many the run's own
+    /// recording keeps (the soak: per-minute figures, flat memory). `None`: the recording keeps
+    /// the first [`helper::MAX_RECORDED_TICKS`].
+    pub tap: Option<helper::Tap>,
 }
 
 /// What the demo knows about the telerobot.
@@ -289,8 +293,11 @@ fn run_loops(
         std::sync::Arc::clone(&haptic.exchange),
         haptic.session,
         config.node,
-        config.record.clone(),
-        streams,
+        helper::Outputs {
+            record: config.record.clone(),
+            streams,
+            tap: config.tap.clone(),
+        },
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;
@@ -305,6 +312,14 @@ fn run_loops(
         sink.send_one(start_ns, record::Message::Run(Box::new(start)));
     }
     let timing = periodic.timing();
+    if let Some(tap) = &config.tap {
+        let start = helper::Tapped::Start {
+            start_ns,
+            period_ns,
+            timing: std::sync::Arc::clone(&timing),
+        };
+        let _ = tap.to.send(start);
+    }
     let started = Instant::now();
     let haptic = rt::spawn("haptic-loop", config.realtime_priority, move || {
         haptic.run(periodic)

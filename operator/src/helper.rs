@@ -14,6 +14,9 @@
 //! - with `--record`/`--live`, hands the same records, the clouds, the link statistics (10 Hz)
 //!   and the safety and device events (from the records' flags) to the recorder
 //!   ([`record::RecordSink`]): one batch per round, never waiting.
+//! - with a [`Tap`] (the soak), hands the same tick and measurement samples to its channel, one
+//!   batch per round, and keeps at most the tap's `keep_ticks` in the recording: memory stays
+//!   flat however long the run.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -133,6 +136,38 @@ impl Streams {
     }
 }
 
+/// A consumer of every tick and measurement sample as the run goes (the soak's per-minute
+/// figures), and how many of them the run's own recording keeps (its report covers those).
+#[derive(Clone, Debug)]
+pub struct Tap {
+    /// Where the batches go: one per helper round that took something, after the run's
+    /// [`Tapped::Start`].
+    pub to: std::sync::mpsc::Sender<Tapped>,
+    /// Most ticks (and measurements) the run's recording keeps.
+    pub keep_ticks: usize,
+}
+
+/// What a [`Tap`] receives.
+#[derive(Clone, Debug)]
+pub enum Tapped {
+    /// The haptic loop's schedule and timing counters, before its first tick.
+    Start {
+        /// Tick 0's time [ns].
+        start_ns: i64,
+        /// Tick period \[ns\].
+        period_ns: i64,
+        /// The loop's timing counters (overruns, skipped ticks), live.
+        timing: Arc<rt::LoopTiming>,
+    },
+    /// The samples one helper round took.
+    Batch {
+        /// Tick samples, in tick order.
+        ticks: Vec<TickSample>,
+        /// Measurements in arrival order.
+        measurements: Vec<MeasurementSample>,
+    },
+}
+
 /// Everything recorded during a run, for its report.
 #[derive(Debug, Default)]
 pub struct Recording {
@@ -140,7 +175,7 @@ pub struct Recording {
     pub ticks: Vec<TickSample>,
     /// Measurements in arrival order, each with the clock-offset estimate when it was taken.
     pub measurements: Vec<MeasurementSample>,
-    /// Tick records beyond [`MAX_RECORDED_TICKS`], not kept.
+    /// Tick records beyond [`MAX_RECORDED_TICKS`] (or a tap's `keep_ticks`), not kept.
     pub ticks_not_kept: u64,
     /// Cloud frames indexed, and refused (bad points).
     pub clouds: (u64, u64),
@@ -152,18 +187,32 @@ pub struct Recording {
     pub periods: [rt::Histogram; 2],
 }
 
+/// Where the helper sends what it takes, beyond the run's own recording.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    /// The recorder, if the run records.
+    pub record: Option<RecordSink>,
+    /// The streamed records (`--out`), if any.
+    pub streams: Option<Streams>,
+    /// The tap (the soak), if any.
+    pub tap: Option<Tap>,
+}
+
 /// Starts the helper; `session` is the session of the loop's first node, `config` the operator
-/// node's settings for the nodes it builds, `record` the recorder, if the run records. It stops
-/// (and returns the recording) at `stop`.
+/// node's settings for the nodes it builds. It stops (and returns the recording) at `stop`.
 pub fn spawn(
     link: OperatorLink,
     exchange: Arc<Exchange>,
     session: u64,
     config: OperatorConfig,
-    record: Option<RecordSink>,
-    streams: Option<Streams>,
+    outputs: Outputs,
     stop: Shutdown,
 ) -> std::io::Result<JoinHandle<Recording>> {
+    let Outputs {
+        record,
+        streams,
+        tap,
+    } = outputs;
     std::thread::Builder::new()
         .name("haptic-helper".to_owned())
         .spawn(move || {
@@ -183,6 +232,8 @@ pub fn spawn(
                 last_position: [0.0; 3],
                 previous_tick: None,
                 streams,
+                keep: tap.as_ref().map_or(MAX_RECORDED_TICKS, |t| t.keep_ticks),
+                tap: tap.map(|t| (t.to, Vec::new(), Vec::new())),
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
@@ -208,6 +259,14 @@ struct Helper {
     /// The last tick's index and start [ns].
     previous_tick: Option<(u64, i64)>,
     streams: Option<Streams>,
+    /// Most ticks and measurements the recording keeps.
+    keep: usize,
+    /// The tap, and this round's ticks and measurements for it.
+    tap: Option<(
+        std::sync::mpsc::Sender<Tapped>,
+        Vec<TickSample>,
+        Vec<MeasurementSample>,
+    )>,
 }
 
 /// What goes to the recorder: this round's batch, and what the events are edges of.
@@ -237,15 +296,19 @@ impl Helper {
             if let Some(s) = &mut self.streams {
                 s.tick(&t);
             }
+            let sample = TickSample {
+                index: t.index,
+                position_m: t.position_m,
+                force_n: t.force_n,
+                in_contact: t.in_contact,
+                rendering: t.rendering,
+            };
+            if let Some((_, ticks, _)) = &mut self.tap {
+                ticks.push(sample);
+            }
             let r = &mut self.recording;
-            if r.ticks.len() < MAX_RECORDED_TICKS {
-                r.ticks.push(TickSample {
-                    index: t.index,
-                    position_m: t.position_m,
-                    force_n: t.force_n,
-                    in_contact: t.in_contact,
-                    rendering: t.rendering,
-                });
+            if r.ticks.len() < self.keep {
+                r.ticks.push(sample);
             } else {
                 r.ticks_not_kept += 1;
             }
@@ -259,8 +322,11 @@ impl Helper {
             if let Some(s) = &mut self.streams {
                 s.measurement(&rec);
             }
+            if let Some((_, _, measurements)) = &mut self.tap {
+                measurements.push(rec.sample());
+            }
             let r = &mut self.recording;
-            if r.measurements.len() < MAX_RECORDED_TICKS {
+            if r.measurements.len() < self.keep {
                 r.measurements.push(rec.sample());
             }
             if let Some(f) = self.record.as_mut().filter(|_| recording) {
@@ -273,6 +339,24 @@ impl Helper {
         }
         if let Some(s) = &mut self.streams {
             s.flush(false);
+        }
+        self.tap_batch();
+    }
+
+    /// This round's samples to the tap, if it took any (a vanished consumer is forgotten).
+    fn tap_batch(&mut self) {
+        let Some((to, ticks, measurements)) = &mut self.tap else {
+            return;
+        };
+        if ticks.is_empty() && measurements.is_empty() {
+            return;
+        }
+        let batch = Tapped::Batch {
+            ticks: std::mem::take(ticks),
+            measurements: std::mem::take(measurements),
+        };
+        if to.send(batch).is_err() {
+            self.tap = None;
         }
     }
 

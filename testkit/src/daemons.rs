@@ -109,6 +109,7 @@ pub fn operator_config(
         }),
         record: None,
         stream_to: None,
+        tap: None,
     }
 }
 

@@ -108,6 +108,7 @@ pub(super) fn run_cmd(
         known: None,
         record: recorder.as_ref().map(Recorder::sink),
         stream_to: dir.clone(),
+        tap: None,
     };
     let outcome = app::run(config, shutdown)?;
     let recorded = recorder.map(Recorder::finish).transpose()?;
