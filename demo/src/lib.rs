@@ -17,6 +17,7 @@
 pub mod cli;
 pub mod report;
 pub mod run;
+pub mod soak;
 
 pub use report::{DemoReport, ShimReport};
 pub use run::{DemoConfig, DemoError, Outcome};

@@ -52,6 +52,13 @@ pub struct DemoConfig {
     pub robot: telerobot::robot::RobotConfig,
     /// Where the operator streams its records as the run goes (the demo's `--out`).
     pub stream_to: Option<rt::OutDir>,
+    /// Random loss the shim adds in each direction \[%\], 0 to 50. Default 0.
+    pub loss_pct: f64,
+    /// Uniform jitter (half-width) the shim adds in each direction \[ms\], 0 to 100. Default 0.
+    pub jitter_ms: f64,
+    /// The soak's consumer of every tick and measurement; with it, runs up to 24 h are allowed
+    /// (the operator's recording keeps only the tap's `keep_ticks`). Default none: up to 600 s.
+    pub tap: Option<operator::helper::Tap>,
 }
 
 impl Default for DemoConfig {
@@ -67,6 +74,9 @@ impl Default for DemoConfig {
             scene: Scene::exp1(),
             robot: telerobot::robot::RobotConfig::Sim,
             stream_to: None,
+            loss_pct: 0.0,
+            jitter_ms: 0.0,
+            tap: None,
         }
     }
 }
@@ -121,11 +131,38 @@ impl DemoConfig {
             (0.0..=2000.0).contains(&self.delay_ms),
             "0 to 2000 ms",
         )?;
+        if self.tap.is_some() {
+            check(
+                "--minutes",
+                self.seconds / 60.0,
+                (60.0..=86_460.0).contains(&self.seconds),
+                "1 to 1440 minutes",
+            )?;
+        } else {
+            check(
+                "--seconds",
+                self.seconds,
+                (5.0..=600.0).contains(&self.seconds),
+                "5 to 600 s",
+            )?;
+        }
         check(
-            "--seconds",
-            self.seconds,
-            (5.0..=600.0).contains(&self.seconds),
-            "5 to 600 s",
+            "--loss-pct",
+            self.loss_pct,
+            (0.0..=50.0).contains(&self.loss_pct),
+            "0 to 50 %",
+        )?;
+        check(
+            "--jitter-ms",
+            self.jitter_ms,
+            (0.0..=100.0).contains(&self.jitter_ms),
+            "0 to 100 ms",
+        )?;
+        check(
+            "--loss-pct/--jitter-ms without the shim",
+            self.loss_pct + self.jitter_ms,
+            self.via_shim || self.loss_pct + self.jitter_ms == 0.0,
+            "0 (only the shim adds loss and jitter)",
         )?;
         check(
             "--delay-ms without the shim",
@@ -239,7 +276,13 @@ fn start_shim(
     telerobot: SocketAddr,
     spin_ns: i64,
 ) -> Result<netem::ShimHandle, DemoError> {
-    let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    let mut delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    delay.jitter_ns = (config.jitter_ms * 1e6).round() as u64;
+    if config.loss_pct > 0.0 {
+        delay.loss = netem::Loss::Random {
+            probability: config.loss_pct / 100.0,
+        };
+    }
     let mut shim_config = ShimConfig::new(listen, telerobot);
     shim_config.up = delay.clone();
     shim_config.down = delay;
@@ -301,6 +344,7 @@ fn operator_config(
             .as_ref()
             .map(record::RecordSink::without_clouds),
         stream_to: config.stream_to.clone(),
+        tap: config.tap.clone(),
     }
 }
 
