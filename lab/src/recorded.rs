@@ -207,7 +207,11 @@ fn networked_report(
         .map(OperatorTick::sample)
         .collect();
     let measurements: Vec<_> = rec.measurements.iter().map(|m| m.sample()).collect();
-    let (series, figures) = figures(&facts, &ticks, &measurements, nodes);
+    let (series, mut figures) = figures(&facts, &ticks, &measurements, nodes);
+    // The windows an outage touched, marked as the run's report marks them.
+    let last = ticks.last().map_or(0, |t| t.index + 1);
+    let windows = &mut figures.experiment.error_over_time;
+    metrics::networked::mark_outages(&facts, last, &measurements, windows);
     let mut json = serde_json::to_value(&figures).unwrap_or_default();
     if let (Some(all), Some(serde_json::Value::Object(counters))) =
         (json.as_object_mut(), end.and_then(|e| e.counters.clone()))

@@ -151,6 +151,28 @@ pub fn figures(
     (series, figures)
 }
 
+/// The run's outages by the measurements' arrivals, to the end of tick `ticks` (a run that ends
+/// in an outage counts it); every 1 s window of `windows` that overlaps one is marked: its
+/// error is not the model's alone. The operator's report and `mmt report FILE.mcap` both call
+/// it.
+pub fn mark_outages(
+    run: &NetworkedRun,
+    ticks: u64,
+    measurements: &[MeasurementSample],
+    windows: &mut [crate::Window],
+) -> rt::Outages {
+    let mut arrivals: Vec<i64> = measurements.iter().map(|m| m.received_ns).collect();
+    arrivals.sort_unstable();
+    let end_ns = run.start_ns + ticks as i64 * run.period_ns;
+    let (outages, spans) = rt::Outages::from_arrivals(&arrivals, end_ns);
+    for w in windows {
+        let from = run.start_ns + (w.t_s * 1e9).round() as i64;
+        let to = from + 1_000_000_000;
+        w.outage = spans.iter().any(|&(a, b)| a < to && b > from);
+    }
+    outages
+}
+
 /// The series, one entry per tick; ticks the loop skipped repeat the previous one (counted).
 pub fn series(
     run: &NetworkedRun,
@@ -246,4 +268,50 @@ fn measured_delay(
         period * 1e-9,
         LagRange::default(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `mmt report FILE.mcap` left every window unmarked; the run's report marked them.
+    #[test]
+    fn windows_an_outage_touches_are_marked_and_no_others() {
+        const MS: i64 = 1_000_000;
+        let run = NetworkedRun {
+            start_ns: 10_000 * MS,
+            period_ns: MS,
+            ..NetworkedRun::default()
+        };
+        // Measurements every ms from 0 to 5 s after the start, except 2.5 s → 3.2 s.
+        let measurements: Vec<MeasurementSample> = (0..5_000)
+            .filter(|k| !(2_500..3_200).contains(k))
+            .map(|k| MeasurementSample {
+                received_ns: run.start_ns + k * MS,
+                ..MeasurementSample::default()
+            })
+            .collect();
+        let mut windows: Vec<crate::Window> = (0..5)
+            .map(|k| crate::Window {
+                t_s: k as f64,
+                rms_error_pct: Some(1.0),
+                outage: false,
+            })
+            .collect();
+        let outages = mark_outages(&run, 5_000, &measurements, &mut windows);
+        assert_eq!(outages.count, 1);
+        assert_eq!(outages.longest_ms, 701.0);
+        let marked: Vec<bool> = windows.iter().map(|w| w.outage).collect();
+        assert_eq!(marked, [false, false, true, true, false]);
+        // A run that ends in an outage: the last window is marked too.
+        let outages = mark_outages(&run, 5_400, &measurements, &mut windows);
+        assert_eq!(outages.count, 2);
+        assert!(windows[4].outage);
+        // Nothing received: the whole run is one outage.
+        let outages = mark_outages(&run, 5_000, &[], &mut windows);
+        assert_eq!(
+            outages.count, 0,
+            "no arrival, nothing to measure a gap from"
+        );
+    }
 }

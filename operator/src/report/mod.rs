@@ -177,7 +177,13 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
     let nodes = node_info(facts.truth.as_ref(), end);
     let (series, figures) = networked::figures(&run, &rec.ticks, &rec.measurements, nodes);
     let mut experiment = figures.experiment;
-    let outages = mark_outages(&run, rec, &mut experiment.error_over_time);
+    let ticks = rec.ticks.last().map_or(0, |t| t.index + 1);
+    let outages = networked::mark_outages(
+        &run,
+        ticks,
+        &rec.measurements,
+        &mut experiment.error_over_time,
+    );
     let report = NetworkedReport {
         experiment,
         measured_delay_ms: figures.measured_delay_ms,
@@ -212,22 +218,6 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
-}
-
-/// The run's outages (from the measurements' arrivals, to the last tick), and each 1 s window
-/// of `windows` that overlaps one marked.
-fn mark_outages(run: &NetworkedRun, rec: &Recording, windows: &mut [metrics::Window]) -> Outages {
-    let mut arrivals: Vec<i64> = rec.measurements.iter().map(|m| m.received_ns).collect();
-    arrivals.sort_unstable();
-    let ticks = rec.ticks.last().map_or(0, |t| t.index as i64 + 1);
-    let end_ns = run.start_ns + ticks * run.period_ns;
-    let (outages, spans) = Outages::from_arrivals(&arrivals, end_ns);
-    for w in windows {
-        let from = run.start_ns + (w.t_s * 1e9).round() as i64;
-        let to = from + 1_000_000_000;
-        w.outage = spans.iter().any(|&(a, b)| a < to && b > from);
-    }
-    outages
 }
 
 /// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the
