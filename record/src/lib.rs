@@ -27,11 +27,12 @@ pub mod read;
 pub mod replay;
 mod scene;
 pub mod schema;
+mod stream;
 mod writer;
 
 pub use encode::{ChannelSchema, topic_schema};
 pub use live::{LiveReport, LiveServer};
-pub use read::{ReadError, Recording, read};
+pub use read::{ReadError, Recording, read, read_bytes};
 pub use replay::ReplayBridge;
 pub use scene::SCENE_RATE_HZ;
 pub use schema::{Kind, Message, Side, Timed};

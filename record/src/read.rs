@@ -16,6 +16,7 @@ use crate::schema::{
     MeasurementRec, OperatorTick, ParametersRec, RunEnd, RunStart, Side, StateSyncRec,
     TelerobotTick, topic,
 };
+use crate::stream::Messages;
 
 /// Why a file was refused.
 #[derive(Debug, thiserror::Error)]
@@ -185,18 +186,21 @@ pub fn read(path: &Path, topics: &[&str]) -> Result<Recording, ReadError> {
         path: name.clone(),
         error,
     })?;
-    let header = header(&bytes, &name)?;
+    let mut rec = read_bytes(&bytes, &name, topics)?;
+    rec.path = path.to_owned();
+    Ok(rec)
+}
+
+/// [`read`] on a file's bytes (no file system access); `name` names the source in errors and
+/// becomes [`Recording::path`]. Whatever the bytes, an error or a recording, never a panic.
+pub fn read_bytes(bytes: &[u8], name: &str, topics: &[&str]) -> Result<Recording, ReadError> {
+    let header = header(bytes, name)?;
     let mut rec = Recording {
-        path: path.to_owned(),
+        path: PathBuf::from(name),
         header: Some(header),
         ..Recording::default()
     };
-    let stream = mcap::MessageStream::new_with_options(&bytes, Options::IgnoreEndMagic.into())
-        .map_err(|e| ReadError::NotMcap {
-            path: name.clone(),
-            reason: e.to_string(),
-        })?;
-    for (index, message) in stream.enumerate() {
+    for (index, message) in Messages::new(bytes).enumerate() {
         let message = match message {
             Ok(m) => m,
             Err(e) => {
@@ -208,14 +212,14 @@ pub fn read(path: &Path, topics: &[&str]) -> Result<Recording, ReadError> {
             }
         };
         rec.messages += 1;
-        let topic_name = message.channel.topic.as_str();
+        let topic_name = message.topic.as_str();
         if !topics.is_empty() && !topics.contains(&topic_name) {
             rec.skipped += 1;
             continue;
         }
         take(&mut rec, topic_name, &message.data, message.log_time).map_err(|error| {
             ReadError::Message {
-                path: name.clone(),
+                path: name.to_owned(),
                 index: index as u64,
                 topic: topic_name.to_owned(),
                 error,

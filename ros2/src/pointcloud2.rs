@@ -167,14 +167,27 @@ impl Layout {
                 point_step: msg.point_step,
             });
         }
+        // An empty cloud has no rows to read, whatever its other dimension says: `width 0,
+        // height 2^32 − 1` used to make the decoder walk four billion empty rows (seconds of
+        // the camera thread per message; found by the `pointcloud2` fuzz target).
+        let (width, height) = if count == 0 {
+            (0, 0)
+        } else {
+            (msg.width as usize, msg.height as usize)
+        };
         Ok(Layout {
             xyz,
             big_endian: msg.is_bigendian,
             point_step: msg.point_step as usize,
             row_step: msg.row_step as usize,
-            width: msg.width as usize,
-            height: msg.height as usize,
+            width,
+            height,
         })
+    }
+
+    /// Rows the decoder reads: `height`, or 0 for an empty cloud.
+    pub fn rows(&self) -> usize {
+        self.height
     }
 
     /// Points the message declares (`width · height`).

@@ -170,6 +170,35 @@ fn field(
 }
 
 impl CloudSource {
+    /// Every number of the section is finite, whichever source reads it: a key the source
+    /// ignores is still part of the accepted scene (written back out by `toml`, shown in
+    /// reports), and a NaN there used to pass because only the source's own keys were checked.
+    pub(super) fn validate_finite(&self) -> Result<(), SceneError> {
+        let p = &self.pose;
+        let numbers: [(&'static str, &[f64]); 8] = [
+            ("cloud.size_m", &self.size_m),
+            ("cloud.spacing_m", &[self.spacing_m]),
+            ("cloud.noise_m", &[self.noise_m]),
+            ("cloud.dropout", &[self.dropout]),
+            ("cloud.rate_hz", &[self.rate_hz]),
+            ("cloud.stale_ms", &[self.stale_ms]),
+            ("cloud.pose.translation_m", &p.translation_m),
+            ("cloud.pose.quaternion_xyzw", &p.quaternion_xyzw),
+        ];
+        for (name, values) in numbers {
+            field(
+                name,
+                values,
+                values.iter().all(|v| v.is_finite()),
+                "finite numbers (every key is checked, whichever source uses it)",
+            )?;
+        }
+        if let Some(v) = self.voxel_m {
+            field("cloud.voxel_m", v, v.is_finite(), "a finite number")?;
+        }
+        Ok(())
+    }
+
     /// The keys of a `file` or `ros2` source (the plane's are checked with the proxy, in
     /// `validate`).
     pub(super) fn validate_external(&self) -> Result<(), SceneError> {

@@ -133,6 +133,7 @@ impl Scene {
             (100.0..=20_000.0).contains(&self.rates.control_hz),
             "in [100, 20000] Hz",
         )?;
+        self.cloud.validate_finite()?;
         self.cloud.validate_external()?;
         if self.cloud.source == CloudKind::Plane {
             self.validate_cloud()?;
