@@ -100,10 +100,39 @@ pub fn device_trajectory(rec: &Recording) -> Vec<DeviceSample> {
         .iter()
         .map(|t| {
             (
-                (t.sample_time_ns - start) as f64 * 1e-9,
+                // Widened: a damaged file's extreme times must not overflow (the replay device
+                // then refuses the times as out of order or not finite).
+                (i128::from(t.sample_time_ns) - i128::from(start)) as f64 * 1e-9,
                 t.device_position_m,
                 t.device_velocity_m_per_s,
             )
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::schema::OperatorTick;
+
+    /// Suspected by the fuzz campaign: extreme tick times in a damaged file overflowed the
+    /// subtraction (a panic with overflow checks on, a wrong time without).
+    #[test]
+    fn extreme_tick_times_give_finite_far_times_not_an_overflow() {
+        let tick = |t| OperatorTick {
+            sample_time_ns: t,
+            ..OperatorTick::default()
+        };
+        let rec = Recording {
+            operator_ticks: vec![tick(i64::MIN), tick(i64::MAX)],
+            ..Recording::default()
+        };
+        let samples = device_trajectory(&rec);
+        assert_eq!(samples[0].0, 0.0);
+        assert!(
+            (samples[1].0 - u64::MAX as f64 * 1e-9).abs() < 1e3,
+            "{}",
+            samples[1].0
+        );
+    }
 }
