@@ -23,3 +23,23 @@ fn a_bad_path_prints_one_message_and_no_backtrace() {
     assert!(stderr.contains(&*dir.to_string_lossy()), "{stderr}");
     assert_eq!(stderr.matches("os error 21").count(), 1, "{stderr}");
 }
+
+/// A run refused for its settings leaves no recording behind (it left a 405-byte file).
+#[test]
+fn a_refused_run_writes_no_recording() {
+    let file = std::env::temp_dir().join(format!("mmt-refused-{}.mcap", std::process::id()));
+    let _ = std::fs::remove_file(&file);
+    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", "exp1", "--seconds", "0.05", "--record"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("seconds = 0.05 is out of range"),
+        "{stderr}"
+    );
+    assert!(!file.exists(), "{} was written", file.display());
+    assert!(!file.with_extension("mcap.partial").exists());
+}

@@ -77,6 +77,8 @@ fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<(
 
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     let config = config(&args)?;
+    // Every setting before any file: a refused run leaves no recording behind.
+    config.validate()?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);

@@ -125,7 +125,8 @@ impl ExperimentConfig {
         }
     }
 
-    fn validate(&self) -> Result<(), ExperimentError> {
+    /// Every setting against its range: the field, the value and what is allowed.
+    pub fn validate(&self) -> Result<(), ExperimentError> {
         let field = |field: &'static str, value: f64, ok: bool, expected: &'static str| {
             if ok {
                 Ok(())
