@@ -15,7 +15,7 @@ use crate::run::{DemoConfig, run};
 /// telerobot daemon on the built-in exp-1 scene, the netem shim delaying each direction, the
 /// operator app with the scripted exp-1 device; then the report, its series and its plots.
 #[derive(Clone, Debug, Parser)]
-#[command(name = "demo", version, about)]
+#[command(name = "demo", version, about, allow_negative_numbers = true)]
 pub struct Cli {
     /// One-way delay the netem shim adds in each direction [ms].
     #[arg(
@@ -158,6 +158,9 @@ mod tests {
             (&["--seconds", "1"][..], "--seconds = 1 is out of range"),
             (&["--delay-ms", "-5"][..], "--delay-ms = -5 is out of range"),
             (&["--delay-ms", "5", "--no-shim"][..], "without the shim"),
+            // Issue 11: a negative value was taken for a flag ("unexpected argument '-1'").
+            (&["--record-ab-s", "-1"][..], "--record-ab-s -1: expected"),
+            (&["--spin-us", "-3"][..], "--spin-us = -3 is out of range"),
         ] {
             let args =
                 Cli::try_parse_from(std::iter::once("demo").chain(flags.iter().copied())).unwrap();

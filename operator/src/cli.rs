@@ -85,14 +85,17 @@ impl SdkArgs {
 
 /// `operator devices` options.
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct DevicesArgs {
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
 }
 
-/// `operator run` options.
+/// `operator run` options. Negative numbers are values (`--seconds -1` is refused by the range
+/// check, as `--seconds=-1` is, not taken for a flag).
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct RunArgs {
     /// The device: scripted:NAME, replay:FILE.csv, replay:FILE.mcap (a recording), spacemouse
     /// or omega.
@@ -342,6 +345,9 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         .map(rt::OutDir::prepare)
         .transpose()?;
     let safety = args.safety()?;
+    // Every flag is checked before anything is printed or opened (issue 11: a range error came
+    // after the "network:" line), also when no telerobot is given.
+    args.run.periodic()?;
     let net = args.net.config()?;
     let options = OpenOptions {
         scripted_length_s: args.run.seconds,

@@ -54,8 +54,10 @@ pub struct GenCertArgs {
     pub names: Vec<String>,
 }
 
-/// `telerobot run` options.
+/// `telerobot run` options. Negative numbers are values (`--spin-us -1` is refused by the range
+/// check, as `--spin-us=-1` is, not taken for a flag).
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct RunArgs {
     /// UDP address to listen on, IP:PORT (e.g. 0.0.0.0:4433).
     #[arg(long, value_name = "ADDR", value_parser = address::parse_listen_addr)]
@@ -198,4 +200,37 @@ pub fn run(args: &RunArgs, shutdown: Shutdown) -> anyhow::Result<()> {
         tracing::info!("{}", record::cli::summary(&report));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    /// Issue 11: `--spin-us -1` gave clap's "unexpected argument '-1'" while `--spin-us=-1`
+    /// gave the range error; both forms now give the range error.
+    #[test]
+    fn a_negative_number_is_a_value_in_both_forms() {
+        let parse = |spin: &[&str]| {
+            let mut argv = vec![
+                "telerobot",
+                "run",
+                "--listen",
+                "127.0.0.1:0",
+                "--identity",
+                "/nonexistent",
+                "--trust",
+                "/nonexistent.crt",
+            ];
+            argv.extend_from_slice(spin);
+            let Command::Run(args) = Cli::try_parse_from(argv).unwrap().command else {
+                panic!("not run")
+            };
+            RunConfig::from_args(&args).unwrap_err().to_string()
+        };
+        let spaced = parse(&["--spin-us", "-1"]);
+        assert_eq!(spaced, parse(&["--spin-us=-1"]));
+        assert_eq!(spaced, "--spin-us -1: expected 0 to 200 µs");
+    }
 }

@@ -7,6 +7,7 @@ use mmt::model::backsolve::Confidence;
 
 /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct EstimateArgs {
     /// Print JSON instead of a table.
     #[arg(long)]

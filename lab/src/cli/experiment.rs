@@ -9,6 +9,7 @@ use std::time::Instant;
 
 /// Reproduce thesis experiments 1–3 in-process (deterministic, faster than real time).
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct ExperimentArgs {
     /// exp1 (no delay), exp2 (estimator, Franka-like sensors), exp3 (400 ms one-way delay).
     name: String,
@@ -184,6 +185,21 @@ mod tests {
     struct Cli {
         #[command(flatten)]
         args: ExperimentArgs,
+    }
+
+    /// Issue 11: `--delay-ms -5` gave clap's "unexpected argument '-5'" while `--delay-ms=-5`
+    /// gave the range error; both forms now give the range error.
+    #[test]
+    fn a_negative_number_is_a_value_in_both_forms() {
+        for (flag, value) in [("--delay-ms", "-5"), ("--seconds", "-5")] {
+            let joined = format!("{flag}={value}");
+            let spaced = Cli::try_parse_from(["mmt", "exp1", flag, value]).unwrap();
+            let equals = Cli::try_parse_from(["mmt", "exp1", &joined]).unwrap();
+            let spaced = run_cmd(spaced.args).unwrap_err().to_string();
+            let equals = run_cmd(equals.args).unwrap_err().to_string();
+            assert_eq!(spaced, equals, "{flag}");
+            assert!(spaced.contains(value), "{spaced}");
+        }
     }
 
     /// Before: `--loss-pct 150` was refused as "loss = 1.5: a fraction".

@@ -61,7 +61,8 @@ pub enum LoopArgsError {
 }
 
 impl LoopArgs {
-    fn periodic(&self) -> Result<PeriodicConfig, LoopArgsError> {
+    /// The loop schedule; `--spin-us` and `--seconds` checked.
+    pub(super) fn periodic(&self) -> Result<PeriodicConfig, LoopArgsError> {
         let spin = self.rt.spin_us;
         if !(spin.is_finite() && (0.0..=200.0).contains(&spin)) {
             return Err(LoopArgsError::Spin(spin));

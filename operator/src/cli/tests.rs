@@ -274,3 +274,32 @@ fn loop_flags_are_checked() {
     .to_string();
     assert!(e.contains("--realtime-priority"), "{e}");
 }
+
+/// Issue 11: `--spin-us -3` gave clap's "unexpected argument '-3'" while `--spin-us=-3` gave
+/// the range error — and without `--connect` the loop flags were not checked at all (exit 0),
+/// with it only after the "network:" line. Both forms now give the range error, before
+/// anything is printed.
+#[test]
+fn a_negative_number_is_a_value_in_both_forms() {
+    for (flag, value) in [
+        ("--position-scale", "-2"),
+        ("--spin-us", "-3"),
+        ("--seconds", "-1"),
+    ] {
+        let joined = format!("{flag}={value}");
+        let mut errors = Vec::new();
+        for argv in [vec![flag, value], vec![joined.as_str()]] {
+            let args = run_args(&argv);
+            let mut printed = Vec::new();
+            let e = run(&args, Shutdown::new(), &mut printed).unwrap_err();
+            assert!(printed.is_empty(), "{argv:?}: printed before the check");
+            errors.push(e.to_string());
+        }
+        assert_eq!(errors[0], errors[1], "{flag}");
+        assert!(
+            errors[0].contains(flag) && errors[0].contains(value),
+            "{}",
+            errors[0]
+        );
+    }
+}

@@ -9,7 +9,10 @@
 //!   refused connection is then closed with [`transport::CloseCode::Refused`] and the reason.
 //!   A connection presenting the certificate of the operator in control is that operator again
 //!   (its app restarted before the old connection timed out): it takes over, and the old
-//!   connection is closed with [`transport::CloseCode::Replaced`]. The rule is a state machine
+//!   connection is closed with [`transport::CloseCode::Replaced`]. So does any trusted operator
+//!   when nothing (no datagram, no keep-alive) was heard from the one in control for the
+//!   silence limit (max(1 s, 2 × keep-alive, 2 × expected RTT)): a killed operator app sends no
+//!   CONNECTION_CLOSE, and its slot must not wait for quinn's 5 s idle timeout. The rule is a state machine
 //!   (`slot`, no I/O, tested transition by transition); `claim` is its async shell.
 //! - In a session: `Command` datagrams (the newest of their direction, or reordered ones, which
 //!   the node's playout buffer still orders) go to the loop's command queue stamped with their
@@ -197,6 +200,7 @@ impl Server {
                     clouds: io.cloud_bell,
                 },
                 slot::TAKEOVER_WAIT,
+                slot::silence_limit(&self.config.tuning),
             ),
             scene: self.config.scene.clone(),
             handshake_timeout: self.config.handshake_timeout,

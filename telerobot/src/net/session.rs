@@ -1,6 +1,7 @@
 //! One operator connection: the control-stream handshake, then the session pump.
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use bytes::Bytes;
 use protocol::clock::answer_ping;
@@ -20,6 +21,9 @@ use super::claim::{Control, peer_certificate};
 use super::link::{CloudOutcome, Shared};
 use super::slot::Contender;
 use super::{Bells, Context};
+
+/// How often a session looks whether its operator sent anything (any packet) since last time.
+const LIVENESS_SAMPLE: Duration = Duration::from_millis(100);
 
 /// Runs the handshake and, if the operator is accepted, the session until it ends.
 pub(super) async fn run(connection: Connection, context: &Context) {
@@ -144,9 +148,18 @@ async fn pump(
     want_clouds: bool,
 ) -> String {
     let shared = &context.shared;
+    let Some(liveness) = control.liveness() else {
+        return "internal error: the session holds no slot".to_owned();
+    };
     let Some(bells) = control.bells() else {
         return "internal error: the session holds no doorbells".to_owned();
     };
+    // Every packet from the operator (datagrams, acknowledgements, keep-alives) counts as
+    // hearing from it; sampled every 100 ms, so a dead operator is seen within the silence limit
+    // plus 100 ms (`slot::silence_limit`).
+    let mut listening = tokio::time::interval(LIVENESS_SAMPLE);
+    listening.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut packets_in = connection.stats().udp_rx.datagrams;
     // Whatever the loop queued while nobody was connected is stale.
     shared.outbox.mailbox().clear();
     shared.commands.clear();
@@ -178,6 +191,13 @@ async fn pump(
                 }
                 if let Some(frame) = shared.clouds.mailbox().take().filter(|_| want_clouds) {
                     clouds.start(connection.clone(), frame, Arc::clone(shared));
+                }
+            },
+            _ = listening.tick() => {
+                let now_in = connection.stats().udp_rx.datagrams;
+                if now_in != packets_in {
+                    packets_in = now_in;
+                    liveness.heard();
                 }
             },
             ended = &mut control_stream => {
