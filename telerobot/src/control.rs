@@ -142,6 +142,10 @@ impl ControlLoop {
     pub(crate) fn run(mut self, mut periodic: Periodic) -> LoopEnd {
         let mut state = State::default();
         loop {
+            // Idle while no operator is connected: the same ticks (the robot is read and held),
+            // without the spin before each (issue 11: 10 % of a core for nobody). The session's
+            // status flips with the Welcome, before its first command.
+            periodic.set_idle(!self.link.status().connected());
             let tick = periodic.wait();
             if self.shutdown.is_triggered() {
                 break;

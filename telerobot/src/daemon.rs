@@ -371,6 +371,11 @@ impl Telerobot {
             .unwrap_or_else(PoisonError::into_inner)
     }
 
+    /// The control loop's timing so far (idle ticks counted apart).
+    pub fn timing(&self) -> rt::TimingReport {
+        self.timing.report()
+    }
+
     /// The network side: link counters, session status.
     pub fn link(&self) -> &TelerobotLink {
         &self.link

@@ -407,6 +407,38 @@ fn frames_the_operator_cannot_take_yet_are_superseded_not_kept() {
     );
 }
 
+/// The idle daemon spun its 1 kHz loop for nobody (10 % of a core): now its ticks go on
+/// without the spin while no operator is connected, and a session is served at once.
+#[test]
+fn the_loop_idles_without_an_operator_and_serves_one_at_once() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let rt = runtime();
+    let tr = telerobot(&certs.telerobot, &[&certs.operator], 0.0);
+    std::thread::sleep(Duration::from_millis(500));
+    let idle = tr.timing();
+    assert!(idle.ticks >= 300, "{idle:?}");
+    assert!(
+        idle.idle_ticks + 2 >= idle.ticks,
+        "served ticks with nobody connected: {idle:?}"
+    );
+    rt.block_on(async {
+        let mut raw =
+            RawOperator::connect(tr.local_addr(), &certs.operator, &certs.telerobot).await;
+        let answer = raw.hello("alice", PROTOCOL_VERSION).await;
+        assert!(matches!(answer, t2o::Message::Welcome(_)), "{answer:?}");
+        let served = tr.timing();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let later = tr.timing();
+        let idled = later.idle_ticks - served.idle_ticks;
+        assert!(idled <= 2, "{idled} idle ticks while connected");
+        assert!(later.ticks - served.ticks >= 200, "{later:?}");
+        raw.conn.close(0u32.into(), b"done");
+    });
+    let summary = tr.stop();
+    assert!(summary.timing.idle_ticks >= idle.idle_ticks);
+}
+
 #[test]
 fn a_version_mismatch_is_refused_naming_both_versions() {
     let _serial = serial();
