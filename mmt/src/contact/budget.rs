@@ -9,10 +9,10 @@
 //!   exp-1 radii, 18.5 mm at the defaults) once per query, and a worst tick runs several queries
 //!   (two sweeps of up to four segments) and the surface passes over the same points. Its cost
 //!   is therefore `fixed + per_point · P`, `P` the most points any ball of radius `R` holds. `P`
-//!   comes from the cloud's density: [`grid_points_in_ball`] for a square grid of known spacing
-//!   (`π (R + s/√2)² / s²`), [`points_in_ball`] for any point set (counts on a grid of cells of
-//!   edge `≈ R/2`, exact as a bound, about 2× the true count on a surface). The step must fit
-//!   in [`CloudBudget::step_share`] of the tick.
+//!   comes from the cloud's density: [`points_in_ball`] for any point set (counts on a grid of
+//!   cells of edge `≈ R/2`: a bound, about 2–2.7× the true count on a surface),
+//!   [`grid_points_in_ball`] the same bound for a square grid of known spacing, without the
+//!   points. The step must fit in [`CloudBudget::step_share`] of the tick.
 //! - **Per frame.** Building a frame's kd-tree and density bound costs about
 //!   `build_ns_per_point` per point off the loop (the camera thread, the operator's helper), and
 //!   a 2-core machine also runs both 1 kHz loops: `points · frame rate · build cost` must stay
@@ -57,15 +57,21 @@ pub enum BudgetError {
     },
 }
 
-/// Most points of a square grid of spacing `spacing_m` [m] (a plane) within `radius_m` [m] of
-/// any centre: `⌊π (R + s/√2)² / s²⌋`. Each point within the ball owns the `s × s` square
-/// around it, disjoint from the others and inside the disc of radius `R + s/√2`.
+/// [`points_in_ball`] of a square grid of spacing `spacing_m` [m] in an axis-aligned plane,
+/// without the points: a block of five cells of edge `c = R/1.999` spans `5c` along each
+/// in-plane axis and holds at most `⌊5c/s⌋ + 1` grid points along it, so
+/// `(⌊5c/s⌋ + 1)²`. The same bound as for a point set (the cost per point is calibrated on it),
+/// about twice the `π R²/s²` points really in the ball.
 pub fn grid_points_in_ball(spacing_m: f64, radius_m: f64) -> Result<usize, BudgetError> {
     positive("spacing_m", spacing_m)?;
     positive("radius_m", radius_m)?;
-    let r = radius_m + spacing_m * std::f64::consts::FRAC_1_SQRT_2;
-    Ok((std::f64::consts::PI * r * r / (spacing_m * spacing_m)).floor() as usize)
+    let per_axis = (5.0 * radius_m / CELLS_PER_RADIUS / spacing_m).floor() + 1.0;
+    Ok((per_axis * per_axis).min(usize::MAX as f64) as usize)
 }
+
+/// Cells per query radius of [`points_in_ball`]'s grid: just under 2, so that a ball spans
+/// less than two cells either side of the cell its centre is in, whatever the rounding.
+const CELLS_PER_RADIUS: f64 = 1.999;
 
 /// At least the number of `points` [m] within `radius_m` [m] of any centre.
 ///
@@ -77,7 +83,7 @@ pub fn grid_points_in_ball(spacing_m: f64, radius_m: f64) -> Result<usize, Budge
 /// updates per occupied cell.
 pub fn points_in_ball(points: &[[f32; 3]], radius_m: f64) -> Result<usize, BudgetError> {
     positive("radius_m", radius_m)?;
-    let cell_m = radius_m / 1.999;
+    let cell_m = radius_m / CELLS_PER_RADIUS;
     let mut cells: CellMap = HashMap::default();
     for (index, p) in points.iter().enumerate() {
         if !p.iter().all(|v| v.is_finite()) {
