@@ -294,11 +294,9 @@ struct CloudGuard {
 }
 
 impl CloudGuard {
-    /// Holds `points`, a frame of `session`, to the budget at the session's proxy radii, loop
-    /// rate and cloud rate (`scene`; the defaults before a `Welcome`), downsampling them if
-    /// needed: `false` if they must be refused. A session's first frame is held as a static
-    /// cloud's (indexed once), the next ones at the scene's cloud rate: the summary gives a
-    /// rate for static clouds too.
+    /// Holds `points`, a frame of `session`, to the budget at `scene`'s radii and rates (the
+    /// defaults before a `Welcome`), downsampling if needed: `false` if refused. A session's
+    /// first frame is held as static (the summary gives a rate for static clouds too).
     fn hold(
         &mut self,
         points: &mut Vec<[f32; 3]>,
