@@ -253,7 +253,7 @@ impl VoxelGrid {
 
 /// A first voxel for a budget with none configured: the edge at which the points' bounding box,
 /// seen as a surface, holds about as many voxels as points.
-fn initial_voxel(points: &[[f32; 3]]) -> f64 {
+pub(crate) fn initial_voxel(points: &[[f32; 3]]) -> f64 {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in points {

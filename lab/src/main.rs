@@ -21,6 +21,9 @@ enum Command {
     /// Time the kd-tree build and the proxy step on a noisy plane (and the same steps by brute
     /// force).
     ContactBench(cli::contact_bench::Args),
+    /// What a point cloud costs the loops: proxy step against points in the query ball, index
+    /// build and memory against size (the figures of the point-cloud budget).
+    CloudBudget(cli::cloud_budget::Args),
     /// Reproduce thesis experiments 1–3 in-process (exp1, exp2, exp3).
     Experiment(cli::experiment::ExperimentArgs),
     /// The report and plots of a recorded run, computed again from FILE.mcap.
@@ -42,6 +45,7 @@ enum Command {
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::ContactBench(args) => cli::contact_bench::run(&args),
+        Command::CloudBudget(args) => cli::cloud_budget::run(&args),
         Command::Experiment(args) => cli::experiment::run_cmd(args),
         Command::Report(args) => cli::report::run(args),
         Command::Transfer(args) => cli::transfer::run(args),

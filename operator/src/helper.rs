@@ -1,8 +1,11 @@
 //! The haptic loop's helper thread: everything the loop must not do itself.
 //!
 //! Every 2 ms it
-//! - builds the kd-tree of a newly received cloud and hands the loop an `Arc` of it (keeping the
-//!   last few alive itself, so the loop never frees one);
+//! - holds a newly received cloud to the real-time budget (`mmt::contact::budget`, at the
+//!   `Welcome`'s proxy radii, loop rate and cloud rate: a peer's frame the proxy could not step
+//!   on at the loop rate is voxel-downsampled, or refused when only a voxel the proxy slips
+//!   through would fit; counted in the report, logged once), builds its kd-tree and hands the
+//!   loop an `Arc` of it (keeping the last few alive itself, so the loop never frees one);
 //! - on a new session (a reconnect) builds a fresh operator node from the new `Welcome` and hands
 //!   it to the loop; drops the nodes the loop retired;
 //! - drains the loop's tick records and the telerobot's measurements into the recording the
@@ -23,9 +26,11 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use cloud_io::voxel::VoxelGrid;
 use metrics::networked::{MeasurementSample, TickSample};
 use mmt::cloud::{CloudFrame, Pose};
-use mmt::contact::CloudIndex;
+use mmt::contact::budget::CloudBudget;
+use mmt::contact::{CloudIndex, ProxyConfig};
 use node::operator::{OperatorConfig, OperatorNode};
 use record::schema::{
     CloudRec, ContactRec, EventRec, Level, LinkRec, MeasurementRec, OperatorTick, ParametersRec,
@@ -37,6 +42,7 @@ use rt::Shutdown;
 use crate::haptic::{Exchange, TickRecord};
 use crate::net::OperatorLink;
 use node::OperatorSettings;
+use protocol::telerobot_to_operator::SceneSummary;
 
 /// How often the helper wakes.
 const POLL: Duration = Duration::from_millis(2);
@@ -177,8 +183,10 @@ pub struct Recording {
     pub measurements: Vec<MeasurementSample>,
     /// Tick records beyond [`MAX_RECORDED_TICKS`] (or a tap's `keep_ticks`), not kept.
     pub ticks_not_kept: u64,
-    /// Cloud frames indexed, and refused (bad points).
+    /// Cloud frames indexed, and refused (bad points, or over the real-time budget).
     pub clouds: (u64, u64),
+    /// Cloud frames over the real-time budget: downsampled to fit, and refused.
+    pub clouds_over_budget: (u64, u64),
     /// Nodes built for reconnections.
     pub reconnect_nodes: u64,
     /// Haptic-loop periods (tick start to the next tick's start) while the recorder recorded
@@ -234,6 +242,7 @@ pub fn spawn(
                 streams,
                 keep: tap.as_ref().map_or(MAX_RECORDED_TICKS, |t| t.keep_ticks),
                 tap: tap.map(|t| (t.to, Vec::new(), Vec::new())),
+                guard: CloudGuard::default(),
             };
             while !stop.wait_timeout(POLL) {
                 helper.round();
@@ -267,6 +276,65 @@ struct Helper {
         Vec<TickSample>,
         Vec<MeasurementSample>,
     )>,
+    guard: CloudGuard,
+}
+
+/// Holds frames received from the telerobot to the real-time budget (`mmt::contact::budget`)
+/// before they are indexed: a peer's frame is not trusted to fit.
+#[derive(Debug, Default)]
+struct CloudGuard {
+    budget: CloudBudget,
+    grid: VoxelGrid,
+    /// Frames downsampled to fit, and refused.
+    counts: (u64, u64),
+    /// A frame over the budget was logged (once per run).
+    warned: bool,
+    /// The session of the last frame held.
+    last_session: Option<u64>,
+}
+
+impl CloudGuard {
+    /// Holds `points`, a frame of `session`, to the budget at `scene`'s radii and rates (the
+    /// defaults before a `Welcome`), downsampling if needed: `false` if refused. A session's
+    /// first frame is held as static (the summary gives a rate for static clouds too).
+    fn hold(
+        &mut self,
+        points: &mut Vec<[f32; 3]>,
+        scene: Option<&SceneSummary>,
+        session: u64,
+    ) -> bool {
+        let repeat = self.last_session.replace(session) == Some(session);
+        let (proxy, rate) = scene.map_or((ProxyConfig::default(), Some(30.0)), |s| {
+            let proxy = OperatorSettings::from_welcome(s)
+                .map_or_else(|_| ProxyConfig::default(), |s| s.proxy);
+            (proxy, s.cloud_rate_hz)
+        });
+        let rate = rate.filter(|_| repeat);
+        let fit =
+            cloud_io::budget::fit_to_budget(points, &proxy, &self.budget, rate, &mut self.grid);
+        let first = !self.warned;
+        match &fit {
+            Ok(None) => return true,
+            Ok(Some(fit)) => {
+                self.counts.0 += 1;
+                if first {
+                    tracing::warn!(
+                        "cloud from the telerobot: {fit} (logged once; counted in the report)"
+                    );
+                }
+            }
+            Err(e) => {
+                self.counts.1 += 1;
+                if first {
+                    tracing::warn!(
+                        "cloud from the telerobot refused: {e} (logged once; counted in the report)"
+                    );
+                }
+            }
+        }
+        self.warned = true;
+        fit.is_ok()
+    }
 }
 
 /// What goes to the recorder: this round's batch, and what the events are edges of.
@@ -373,7 +441,16 @@ impl Helper {
             };
             f.push(received.received_ns, Message::Cloud(Side::Operator, cloud));
         }
-        let index = CloudFrame::new(wire.points, wire.timestamp_ns, Pose::default())
+        let mut points = wire.points;
+        let welcome = self.link.status().welcome();
+        let scene = welcome.as_ref().map(|w| &w.scene);
+        if !self.guard.hold(&mut points, scene, received.session) {
+            self.recording.clouds.1 += 1;
+            self.recording.clouds_over_budget = self.guard.counts;
+            return;
+        }
+        self.recording.clouds_over_budget = self.guard.counts;
+        let index = CloudFrame::new(points, wire.timestamp_ns, Pose::default())
             .ok()
             .and_then(|frame| CloudIndex::build(&frame).ok());
         match index {
@@ -517,5 +594,78 @@ impl Forward {
         if !self.batch.is_empty() {
             self.sink.send(std::mem::take(&mut self.batch));
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// A square grid of `n × n` points of spacing `s` [m] on `z = 0`.
+    fn grid(n: usize, s: f32) -> Vec<[f32; 3]> {
+        (0..n)
+            .flat_map(|i| (0..n).map(move |j| [i as f32 * s, j as f32 * s, 0.0]))
+            .collect()
+    }
+
+    fn exp1() -> SceneSummary {
+        sim::scene::Scene::exp1().summary()
+    }
+
+    /// Issue 11, finding 5 on the operator side: a peer's million-point frame (0.25 mm) no
+    /// longer reaches the haptic loop's proxy unreduced.
+    #[test]
+    fn a_peer_frame_over_the_budget_is_downsampled_and_counted() {
+        let mut guard = CloudGuard::default();
+        let mut small = grid(56, 0.0045);
+        assert!(guard.hold(&mut small, Some(&exp1()), 1));
+        assert_eq!((small.len(), guard.counts), (3_136, (0, 0)));
+        let mut big = grid(1_001, 0.00025);
+        assert!(guard.hold(&mut big, Some(&exp1()), 1));
+        assert_eq!(guard.counts, (1, 0));
+        let b = CloudBudget::default();
+        assert!(big.len() <= b.max_points(None), "{}", big.len());
+        let proxy = OperatorSettings::from_welcome(&exp1()).unwrap().proxy;
+        let r = mmt::contact::budget::query_radius_m(&proxy);
+        let ball = mmt::contact::budget::points_in_ball(&big, r).unwrap();
+        assert!(ball <= b.max_points_in_ball(&proxy), "{ball}");
+    }
+
+    #[test]
+    fn a_peer_frame_that_cannot_fit_is_refused_and_counted() {
+        // Default radii (slip spacing 2.83 mm) but r3 = 0.1 m: a solid 78 mm block at 2 mm
+        // lies within one query ball and no voxel the proxy cannot slip through brings it in.
+        let mut scene = exp1();
+        scene.proxy_radii_m = [0.001, 0.003, 0.1];
+        let mut block: Vec<[f32; 3]> = (0..64_000)
+            .map(|k| [k % 40, k / 40 % 40, k / 1_600].map(|v| v as f32 * 0.002))
+            .collect();
+        let mut guard = CloudGuard::default();
+        assert!(!guard.hold(&mut block, Some(&scene), 1));
+        assert_eq!(guard.counts, (0, 1));
+        // NaN points from a peer (the wire checks them, but the guard must not panic).
+        let mut nan = vec![[f32::NAN, 0.0, 0.0]; 4];
+        assert!(!guard.hold(&mut nan, None, 1));
+        assert_eq!(guard.counts, (0, 2));
+    }
+
+    #[test]
+    fn a_session_first_frame_is_held_as_static_and_the_next_at_the_cloud_rate() {
+        // 0.25 m at 0.8 mm (98,000 points, under the step limit): indexed once it fits, at
+        // 30 Hz it does not.
+        let frame = grid(313, 0.0008);
+        let mut guard = CloudGuard::default();
+        let mut first = frame.clone();
+        assert!(guard.hold(&mut first, Some(&exp1()), 3));
+        assert_eq!((first.len(), guard.counts), (frame.len(), (0, 0)));
+        let mut next = frame.clone();
+        assert!(guard.hold(&mut next, Some(&exp1()), 3));
+        assert_eq!(guard.counts, (1, 0));
+        assert!(next.len() <= CloudBudget::default().max_points(Some(30.0)));
+        // A new session starts again from a static first frame.
+        let mut other = frame.clone();
+        assert!(guard.hold(&mut other, Some(&exp1()), 4));
+        assert_eq!((other.len(), guard.counts), (frame.len(), (1, 0)));
     }
 }

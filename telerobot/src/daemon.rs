@@ -177,6 +177,9 @@ pub struct Summary {
     /// Cloud frames handed whole to QUIC, superseded by a newer frame before they were (the
     /// link or the operator could not take them yet: latest wins), and failed.
     pub clouds: (u64, u64, u64),
+    /// Camera frames over the real-time budget: downsampled to fit, and refused (counted in
+    /// `camera_frames` too).
+    pub camera_over_budget: (u64, u64),
     /// Commands lost to a full command queue.
     pub commands_overwritten: u64,
     /// Datagrams lost to a full outbox.
@@ -271,6 +274,9 @@ fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, ro
     tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
         period_us = periodic.period_ns / 1000, spin_us = periodic.spin_ns / 1000,
         "telerobot running ({robot})");
+    if let Some(fit) = config.scene.cloud_budget() {
+        tracing::warn!(scene = %config.scene.name, "{fit}");
+    }
     tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
         max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
         max_clock_jump_s = l.max_clock_jump_ns as f64 * 1e-9,
@@ -432,6 +438,7 @@ impl Telerobot {
             command_latency: rt::Summary::of_samples(&mut latencies),
             camera_frames: self.feed.counts(),
             clouds: status.clouds(),
+            camera_over_budget: self.feed.budget_counts(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),

@@ -156,7 +156,11 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("reading scene {}", path.display()))?;
-            Scene::from_toml(&text, &path.display().to_string())?
+            let scene = Scene::from_toml(&text, &path.display().to_string())?;
+            if let Some(fit) = scene.cloud_budget() {
+                eprintln!("mmt: warning: {}: {fit}", path.display());
+            }
+            scene
         }
         None => Scene::exp1(),
     };

@@ -56,6 +56,9 @@ pub struct NetworkedReport {
     pub outages: Outages,
     /// Cloud frames indexed and refused.
     pub clouds: (u64, u64),
+    /// Cloud frames over the real-time budget (`mmt::contact::budget`): downsampled to fit, and
+    /// refused (counted in `clouds` too).
+    pub clouds_over_budget: (u64, u64),
     /// What the safety layer did.
     pub safety: SafetyStats,
     /// The operator's renderers (the last session's node): the normal axis first (if the model
@@ -201,6 +204,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         sessions: end.sessions,
         outages,
         clouds: rec.clouds,
+        clouds_over_budget: rec.clouds_over_budget,
         safety: end.safety,
         renderers: end.renderers.clone(),
         device_forces: end.force_record,

@@ -1,6 +1,7 @@
 //! Scenes: what the world is and what the model needs (`DESIGN.md` §9). A scene is a TOML file
 //! under `scenes/`; [`Scene::from_toml`] parses it and validates every field, naming the field,
-//! the value and the allowed range on error.
+//! the value and the allowed range on error, then holds a simulated cloud to the real-time
+//! budget ([`Scene::cloud_budget`] says what that changed).
 //!
 //! ```toml
 //! name = "exp1"
@@ -46,10 +47,12 @@
 //! max_clock_jump_s = 10.0
 //! ```
 
+mod budget;
 mod cloud;
 mod settings;
 mod validate;
 
+pub use budget::CloudBudgetFit;
 pub use cloud::{CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS};
 pub use validate::SceneError;
 
@@ -89,6 +92,9 @@ pub struct Scene {
     /// default around the surface point ([`Scene::motion_limits`]).
     #[serde(default)]
     pub limits: Option<LimitsSection>,
+    /// What the real-time budget did to the cloud at load ([`Scene::cloud_budget`]).
+    #[serde(skip)]
+    cloud_budget: Option<CloudBudgetFit>,
 }
 
 /// The robot's motion limits, each optional (`node::MotionLimits` gives the defaults and the
@@ -310,6 +316,9 @@ impl Scene {
             message: e.to_string(),
         })?;
         scene.validate().map_err(|e| e.with_origin(origin))?;
+        scene
+            .fit_cloud_budget(&mmt::contact::budget::CloudBudget::default())
+            .map_err(|e| e.with_origin(origin))?;
         let n = scene.surface.normal;
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         scene.surface.normal = n.map(|c| c / len);

@@ -279,3 +279,77 @@ fn motion_limits_default_around_the_surface_and_a_limits_section_is_checked() {
         );
     }
 }
+
+/// Issue 11, finding 5: the exp-1 window at 0.113 mm (4.9 M points, over half a million in the
+/// proxy's query ball) and at 0.25 mm (1 M points) passed validation and stalled both loops.
+/// They are now downsampled at load, with a warning that names the cloud, its size, the spacing
+/// used and the resulting size.
+#[test]
+fn a_plane_over_the_budget_is_downsampled_with_a_warning() {
+    use mmt::contact::budget::{CloudBudget, OverBudget};
+    let b = CloudBudget::default();
+    for spacing in ["0.000113", "0.00025"] {
+        let s = with_cloud(&format!(
+            "[cloud]\nsource = \"plane\"\nsize_m = [0.25, 0.25]\nspacing_m = {spacing}\n\
+             noise_m = 0.0005\nrate_hz = 30.0\nmoving = true"
+        ))
+        .unwrap();
+        let fit = s.cloud_budget().expect("the budget acted");
+        assert!(matches!(fit.reason, OverBudget::Step { .. }), "{fit}");
+        assert!(fit.before.points >= 1_000_000, "{}", fit.before.points);
+        assert_eq!(s.cloud.spacing_m, fit.spacing_to_m);
+        let proxy = s.proxy.config(s.rates.control_hz);
+        assert!(fit.after.points_in_ball <= b.max_points_in_ball(&proxy));
+        assert!(fit.after.points <= b.max_points(Some(30.0)));
+        assert!(s.cloud.spacing_m < proxy.max_point_spacing_m());
+        let text = fit.to_string();
+        for part in [
+            &format!("spacing_m = {spacing}"),
+            "points per frame",
+            "over the real-time budget",
+            "downsampled to spacing_m = 0.00",
+            "in the query ball",
+        ] {
+            assert!(text.contains(part), "{part:?} not in {text}");
+        }
+    }
+    // The shipped scenes fit as written.
+    assert!(Scene::exp1().cloud_budget().is_none());
+    assert!(Scene::wall().cloud_budget().is_none());
+    assert_eq!(Scene::exp1().cloud.spacing_m, 0.0045);
+}
+
+#[test]
+fn a_plane_that_cannot_fit_without_slipping_is_refused() {
+    // r3 = 0.3 m over a 1 m window: a query ball of 0.46 m holds ~34,000 points even at
+    // 4.5 mm, and no grid the proxy cannot slip through brings it in.
+    let text = EXP1_TOML
+        .replace("r3_m = 0.03 ", "r3_m = 0.3 ")
+        .replace("size_m = [0.25, 0.25]", "size_m = [1.0, 1.0]");
+    assert!(text.contains("r3_m = 0.3 ") && text.contains("size_m = [1.0, 1.0]"));
+    let e = Scene::from_toml(&text, "wide.toml").unwrap_err();
+    let m = e.to_string();
+    for part in [
+        "wide.toml: [cloud] spacing_m = 0.0045 is over the real-time budget at 1000 Hz",
+        "query radius",
+        "the proxy slips through",
+    ] {
+        assert!(m.contains(part), "{part:?} not in {m}");
+    }
+    // A static window is indexed once: 40,000 points are kept as they are; a window moving at
+    // 100 Hz is held to what can be indexed at that rate.
+    let s = with_cloud(
+        "[cloud]\nsource = \"plane\"\nsize_m = [0.9, 0.9]\nspacing_m = 0.0045\nmoving = false",
+    )
+    .unwrap();
+    assert!(s.cloud_budget().is_none());
+    let s = with_cloud(
+        "[cloud]\nsource = \"plane\"\nsize_m = [0.6, 0.6]\nspacing_m = 0.0045\nmoving = true\nrate_hz = 100.0",
+    )
+    .unwrap();
+    let fit = s.cloud_budget().expect("18,000 points at 100 Hz is over");
+    assert!(
+        matches!(fit.reason, mmt::contact::budget::OverBudget::Frame { .. }),
+        "{fit}"
+    );
+}

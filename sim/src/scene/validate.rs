@@ -26,6 +26,15 @@ pub enum SceneError {
         /// The allowed range.
         expected: &'static str,
     },
+    /// The simulated camera's cloud cannot run at the loop rate at any spacing the proxy
+    /// cannot slip through (`mmt::contact::budget`).
+    #[error("{origin}: [cloud] {detail}")]
+    CloudBudget {
+        /// File (or other source).
+        origin: String,
+        /// What is over, and what would fit.
+        detail: String,
+    },
 }
 
 impl SceneError {
@@ -41,6 +50,10 @@ impl SceneError {
                 field,
                 value,
                 expected,
+            },
+            SceneError::CloudBudget { detail, .. } => SceneError::CloudBudget {
+                origin: origin.to_string(),
+                detail,
             },
             other => other,
         }

@@ -32,6 +32,14 @@ pub enum CloudFileError {
         /// Why.
         source: VoxelError,
     },
+    /// Over the real-time budget even at the coarsest voxel the proxy cannot slip through.
+    #[error("cloud file {path}: {source}")]
+    Budget {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: cloud_io::budget::BudgetFitError,
+    },
     /// Nothing left (every point was non-finite, or the file is empty).
     #[error("cloud file {path}: no finite points ({skipped} non-finite skipped)")]
     Empty {
@@ -65,6 +73,10 @@ pub struct FileCloudInfo {
     pub voxel_m: Option<f64>,
     /// The point budget made the voxel spacing grow.
     pub budget_acted: bool,
+    /// What the real-time budget did after the point budget (`None`: nothing), for the
+    /// start-up warning.
+    #[serde(skip)]
+    pub real_time: Option<cloud_io::budget::BudgetFit>,
 }
 
 /// A cloud from a file, in the base frame, ready to be sent.
@@ -108,12 +120,27 @@ impl FileCloud {
             .map(|p| pose.transform_point(p.map(f64::from)).map(|v| v as f32))
             .collect();
         let mut points = Vec::new();
-        let (voxel_m, budget_acted) = VoxelGrid::new()
+        let mut grid = VoxelGrid::new();
+        let (mut voxel_m, budget_acted) = grid
             .downsample_to_budget(&base, c.voxel_m, c.max_points, &mut points)
             .map_err(|source| CloudFileError::Voxel {
                 path: path.clone(),
                 source,
             })?;
+        // The loops' budget (`mmt::contact::budget`): the proxy's worst step at the scene's
+        // radii and rate, and the frames at `rate_hz` when the cloud moves.
+        let proxy = scene.proxy.config(scene.rates.control_hz);
+        let rate = c.moving.then_some(c.rate_hz);
+        let budget = mmt::contact::budget::CloudBudget::default();
+        let real_time =
+            cloud_io::budget::fit_to_budget(&mut points, &proxy, &budget, rate, &mut grid)
+                .map_err(|source| CloudFileError::Budget {
+                    path: path.clone(),
+                    source,
+                })?;
+        if let Some(fit) = &real_time {
+            voxel_m = Some(fit.voxel_m);
+        }
         if points.is_empty() {
             return Err(CloudFileError::Empty {
                 path,
@@ -136,6 +163,7 @@ impl FileCloud {
                 kept: points.len(),
                 voxel_m,
                 budget_acted,
+                real_time,
             },
             points,
             moving: c.moving,
@@ -268,6 +296,44 @@ mod tests {
                 assert!((b[k] - a[k] - 0.01 * t1[k] as f32).abs() < 1e-6);
             }
         }
+        std::fs::remove_file(&path).unwrap();
+    }
+
+    /// Issue 11, finding 5: a million-point file (0.25 mm) within the point budget's reach no
+    /// longer reaches the loops unreduced: the real-time budget downsamples it further, and
+    /// says so for the start-up warning.
+    #[test]
+    fn a_million_point_file_is_held_to_the_real_time_budget() {
+        let path = temp("dense.ply");
+        let points: Vec<[f32; 3]> = (0..1_001 * 1_001)
+            .map(|k| {
+                [
+                    (k % 1_001) as f32 * 0.00025,
+                    (k / 1_001) as f32 * 0.00025,
+                    0.0,
+                ]
+            })
+            .collect();
+        std::fs::write(&path, encode_ply(&points, PlyEncoding::BinaryLittleEndian)).unwrap();
+        let (scene, world) = scene_with(&path, |c| {
+            c.max_points = 1_000_000;
+            c.moving = true;
+        });
+        let file = FileCloud::load(&scene, &world).unwrap();
+        let info = file.info().clone();
+        let fit = info.real_time.expect("over the real-time budget");
+        let b = mmt::contact::budget::CloudBudget::default();
+        assert!(info.kept <= b.max_points(Some(30.0)), "{info:?}");
+        assert_eq!(
+            (fit.after.points, info.voxel_m),
+            (info.kept, Some(fit.voxel_m))
+        );
+        let proxy = scene.proxy.config(scene.rates.control_hz);
+        assert!(fit.after.points_in_ball <= b.max_points_in_ball(&proxy));
+        assert!(
+            fit.to_string().contains("over the real-time budget"),
+            "{fit}"
+        );
         std::fs::remove_file(&path).unwrap();
     }
 

@@ -31,6 +31,7 @@ pub(crate) fn start(
     };
     let camera = super::spawn(
         source,
+        super::FrameBudget::of_scene(&config.scene),
         Arc::clone(feed),
         link.clone(),
         config.record.clone(),
@@ -70,6 +71,9 @@ fn camera_source(
             tracing::info!(file = %i.path.display(), read = i.read,
                 skipped_non_finite = i.skipped_non_finite, kept = i.kept, voxel_m = ?i.voxel_m,
                 budget_acted = i.budget_acted, moving = scene.cloud.moving, "cloud from a file");
+            if let Some(fit) = &i.real_time {
+                tracing::warn!(file = %i.path.display(), "cloud file {}: {fit}", i.path.display());
+            }
             Some(Source::File(Box::new(file)))
         }
         CloudKind::Ros2 => {
