@@ -10,7 +10,8 @@ use sim::world::World;
 /// below 1 kHz (sub-step > 0.1 ms), so a valid 500 Hz scene failed at world creation.
 #[test]
 fn a_valid_scene_below_1_khz_builds_its_world() {
-    for hz in ["100.0", "500.0", "999.0", "1000.0", "20000.0"] {
+    // (Far above 1 kHz the point-cloud budget refuses exp-1's cloud: a tick of 50 µs at 20 kHz.)
+    for hz in ["100.0", "500.0", "999.0", "1000.0", "2000.0"] {
         let text = format!("{EXP1_TOML}\n[rates]\ncontrol_hz = {hz}\n");
         let scene = Scene::from_toml(&text, "rates.toml").unwrap();
         assert!(
@@ -55,4 +56,21 @@ fn a_nan_in_a_cloud_key_the_source_ignores_is_refused() {
         let err = Scene::from_toml(&text, "nan.toml").unwrap_err().to_string();
         assert!(err.contains(key) && err.contains("finite"), "{line}: {err}");
     }
+}
+
+/// Found by `mutated_seeds_are_refused_or_usable` after the budget merge: a sliding object with
+/// `stick_velocity_m_per_s = 0` passed validation (0 was allowed) and the world then refused it
+/// ("stick_band_m_per_s = 0 invalid"). A sliding object needs a stick band; an anchored one
+/// may have none.
+#[test]
+fn a_sliding_object_without_a_stick_band_is_refused_at_validation() {
+    let text = EXP1_TOML.replace(
+        "stick_velocity_m_per_s = 0.005",
+        "stick_velocity_m_per_s = 0.0",
+    );
+    assert_ne!(text, EXP1_TOML);
+    let e = Scene::from_toml(&text, "band.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("environment.stick_velocity_m_per_s"), "{e}");
 }

@@ -198,6 +198,12 @@ impl Scene {
             }
         } else {
             positive("environment.mass_kg", e.mass_kg)?;
+            // The Karnopp stick band of a sliding object: 0 has no band to stick in (the
+            // simulation refused it at world creation; found by the scene proptest).
+            positive(
+                "environment.stick_velocity_m_per_s",
+                e.stick_velocity_m_per_s,
+            )?;
             field(
                 "environment.b_ground_ns_per_m",
                 e.b_ground_ns_per_m,
