@@ -45,8 +45,6 @@ use network::Network;
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
 /// Command latencies queued for the housekeeping thread: 8 s at 1 kHz.
 const LATENCY_QUEUE: usize = 8192;
-/// Command latencies kept for the summary: one hour at 1 kHz (29 MB).
-const MAX_LATENCIES: usize = 3_600_000;
 
 /// Everything `telerobot run` needs, validated.
 #[derive(Clone, Debug)]
@@ -222,7 +220,7 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<(Vec<i64>, transport::Outages)>>,
+    housekeeping: Option<JoinHandle<(rt::Histogram, transport::Outages)>>,
     shared: Arc<Housekeeping>,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
@@ -340,7 +338,7 @@ impl Telerobot {
             timing: Arc::clone(&timing),
             spare_at: None,
             command_latency,
-            latencies: Vec::new(),
+            latencies: rt::Histogram::new(),
             record: config.record.clone().zip(records).map(Forward::new),
             outages: CommandGaps::default(),
         };
@@ -399,7 +397,7 @@ impl Telerobot {
         if let Some(camera) = self.camera.take() {
             let _ = camera.join();
         }
-        let (mut latencies, outages) = self
+        let (latencies, outages) = self
             .housekeeping
             .take()
             .and_then(|h| h.join().ok())
@@ -435,7 +433,7 @@ impl Telerobot {
                 guard: last.guard,
                 fresh_samples: last.fresh_samples,
             },
-            command_latency: rt::Summary::of_samples(&mut latencies),
+            command_latency: latencies.summary(),
             camera_frames: self.feed.counts(),
             clouds: status.clouds(),
             camera_over_budget: self.feed.budget_counts(),
@@ -492,7 +490,9 @@ struct Keeper {
     /// Where the waiting spare was built.
     spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
-    latencies: Vec<i64>,
+    /// Command latencies \[ns\] for the summary: a histogram (0.1 % quantiles, fixed size),
+    /// so that a daemon left running keeps flat memory (a list grew by 29 MB an hour).
+    latencies: rt::Histogram,
     record: Option<Forward>,
     outages: CommandGaps,
 }
@@ -502,7 +502,7 @@ impl Keeper {
     fn spawn(
         self,
         stop: &Shutdown,
-    ) -> Result<JoinHandle<(Vec<i64>, transport::Outages)>, DaemonError> {
+    ) -> Result<JoinHandle<(rt::Histogram, transport::Outages)>, DaemonError> {
         let stop = stop.clone();
         std::thread::Builder::new()
             .name("housekeeping".to_owned())
@@ -511,7 +511,7 @@ impl Keeper {
     }
 
     /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
-    fn run(mut self, stop: &Shutdown) -> (Vec<i64>, transport::Outages) {
+    fn run(mut self, stop: &Shutdown) -> (rt::Histogram, transport::Outages) {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
         let mut guard_log = GuardLog::default();
@@ -547,9 +547,7 @@ impl Keeper {
 
     fn drain_latencies(&mut self) {
         while let Some(lag) = self.command_latency.take() {
-            if self.latencies.len() < MAX_LATENCIES {
-                self.latencies.push(lag);
-            }
+            self.latencies.record(lag);
         }
     }
 
