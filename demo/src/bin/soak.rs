@@ -7,15 +7,7 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = demo::soak::cmd::SoakCli::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
-                tracing_subscriber::EnvFilter::new("warn,operator::safety=error")
-            }),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
+    demo::init_logging();
     let shutdown = rt::Shutdown::new();
     let result = shutdown
         .on_signals()
