@@ -22,7 +22,7 @@ use serde::Serialize;
 use transport::Outages;
 
 /// One minute's figures.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Minute {
     /// Minute number, from the haptic loop's tick 0.
     pub minute: u64,
@@ -262,6 +262,10 @@ pub struct Verdict {
     pub rss_growth_mb_per_h: f64,
     /// Median CPU over the minutes, % of one core.
     pub cpu_median_pct: f64,
+    /// Minutes in contact for at least [`Verdict::CONTACT_PCT`] of their ticks: the error
+    /// figures below are theirs (a minute that lifts off, or spends it out of contact, has
+    /// contact transients or no force to compare: the trajectory lifts off twice in a run).
+    pub minutes_in_contact: usize,
     /// Median of the per-minute error after stable \[%\].
     pub error_median_pct: Option<f64>,
     /// Largest distance of a minute's error from the median \[points\].
@@ -277,11 +281,17 @@ pub struct Verdict {
 }
 
 impl Verdict {
+    /// The share of a minute's ticks in contact for its error to count \[%\].
+    pub const CONTACT_PCT: f64 = 90.0;
+
     /// The verdict over full minutes `rows` (a last, partial minute left out by the caller).
     pub fn of(rows: &[Minute]) -> Verdict {
         let later: Vec<&Minute> = rows.iter().skip(1).collect();
-        let errors: Vec<f64> = rows
+        let in_contact = rows
             .iter()
+            .filter(|r| r.in_contact_pct >= Self::CONTACT_PCT);
+        let errors: Vec<f64> = in_contact
+            .clone()
             .filter_map(|r| r.error_after_stable_pct)
             .collect();
         let error_median = median(&errors);
@@ -298,6 +308,7 @@ impl Verdict {
             rss_max_mb: rows.iter().map(|r| r.rss_mb).fold(0.0, f64::max),
             rss_growth_mb_per_h: slope(&later) * 60.0,
             cpu_median_pct: median(&cpu).unwrap_or(0.0),
+            minutes_in_contact: in_contact.count(),
             error_median_pct: error_median,
             error_max_deviation_pts: deviations.iter().copied().reduce(f64::max),
             minutes_beyond_1_pt: deviations.iter().filter(|&&d| d > 1.0).count(),

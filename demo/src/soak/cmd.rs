@@ -4,6 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::sync::mpsc::Receiver;
 
+use anyhow::Context as _;
 use clap::Parser;
 use operator::cli::RtArgs;
 use operator::helper::{Tap, Tapped};
@@ -61,6 +62,10 @@ pub struct SoakCli {
     /// Loop options (both loops; the shim spins half the window).
     #[command(flatten)]
     pub rt: RtArgs,
+    /// Run nothing: print the verdict of the rows of an earlier soak's soak.json (as this
+    /// version judges them).
+    #[arg(long, value_name = "SOAK_JSON")]
+    pub verdict: Option<PathBuf>,
 }
 
 /// minutes.csv's columns.
@@ -93,6 +98,9 @@ pub fn run_cmd(
     rows: Box<dyn Write + Send>,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
+    if let Some(path) = &args.verdict {
+        return verdict_of(path, out);
+    }
     let (to, from) = std::sync::mpsc::channel();
     // A minute's figures wait for its measurements: a round trip, the jitter and a margin. The
     // run goes on that long after its last minute, so that the last minute is a full one.
@@ -144,12 +152,25 @@ pub fn run_cmd(
         end_report: Some(&outcome.report),
     };
     dir.write_atomic("soak.json", &serde_json::to_vec_pretty(&file)?)?;
-    write!(out, "{}", summary(&verdict, &outcome.report))?;
+    write!(out, "{}", summary(&verdict, Some(&outcome.report)))?;
     writeln!(
         out,
         "files: {}/minutes.csv, soak.json",
         dir.path().display()
     )?;
+    Ok(())
+}
+
+/// The verdict of an earlier soak's rows.
+fn verdict_of(path: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
+    #[derive(serde::Deserialize)]
+    struct Rows {
+        rows: Vec<Minute>,
+    }
+    let text = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let file: Rows = serde_json::from_slice(&text)
+        .with_context(|| format!("{}: not a soak.json (its \"rows\")", path.display()))?;
+    write!(out, "{}", summary(&Verdict::of(&file.rows), None))?;
     Ok(())
 }
 
@@ -233,18 +254,24 @@ fn table_row(m: &Minute) -> String {
     )
 }
 
-/// The verdict, for the terminal.
-fn summary(v: &Verdict, end: &crate::DemoReport) -> String {
+/// The verdict, for the terminal; the whole run's outages from its end report, if at hand.
+fn summary(v: &Verdict, end: Option<&crate::DemoReport>) -> String {
     let pts = |x: Option<f64>| x.map_or("–".to_owned(), |x| format!("{x:.2}"));
+    let whole = end.map_or(String::new(), |e| {
+        let o = e.run.outages;
+        format!(" (whole run: {}, longest {:.0} ms)", o.count, o.longest_ms)
+    });
     format!(
-        "soak: {} full minutes\n\
+        "soak: {} full minutes, {} of them in contact for {:.0} % of their ticks or more\n\
          memory: {:.1} MB after minute 1, {:.1} MB at the end, {:.1} MB at most; \
          trend {:+.1} MB/h\n\
          CPU (whole process): median {:.1} % of one core\n\
-         error after stable per minute: median {} %, largest distance from it {} points, \
-         {} minutes more than 1 point away\n\
-         haptic loop: {} overruns, {} skipped ticks; outages: {} (whole run: {} , longest {:.0} ms)\n",
+         error after stable per minute in contact: median {} %, largest distance from it {} \
+         points, {} minutes more than 1 point away\n\
+         haptic loop: {} overruns, {} skipped ticks; outages: {}{whole}\n",
         v.minutes,
+        v.minutes_in_contact,
+        Verdict::CONTACT_PCT,
         v.rss_mb.0,
         v.rss_mb.1,
         v.rss_max_mb,
@@ -256,8 +283,6 @@ fn summary(v: &Verdict, end: &crate::DemoReport) -> String {
         v.overruns,
         v.skipped_ticks,
         v.outages,
-        end.run.outages.count,
-        end.run.outages.longest_ms,
     )
 }
 
@@ -296,6 +321,43 @@ mod tests {
             assert!(e.to_string().contains(expected), "{flags:?}: {e}");
             assert!(printed.is_empty());
         }
+    }
+
+    #[test]
+    fn the_verdict_of_a_file_is_printed_and_garbage_refused() {
+        let dir = std::env::temp_dir().join(format!("soak-verdict-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("soak.json");
+        let rows: Vec<Minute> = (0..3)
+            .map(|k| Minute {
+                minute: k,
+                in_contact_pct: 100.0,
+                error_after_stable_pct: Some(3.0 + k as f64),
+                ..Minute::default()
+            })
+            .collect();
+        std::fs::write(&file, serde_json::json!({ "rows": rows }).to_string()).unwrap();
+        let args = SoakCli::try_parse_from(["soak", "--verdict", file.to_str().unwrap()]).unwrap();
+        let mut printed = Vec::new();
+        run_cmd(
+            &args,
+            Shutdown::new(),
+            Box::new(std::io::sink()),
+            &mut printed,
+        )
+        .unwrap();
+        let printed = String::from_utf8(printed).unwrap();
+        assert!(printed.contains("median 4.00 %"), "{printed}");
+        assert!(printed.contains("1.00 points, 0 minutes"), "{printed}");
+        std::fs::write(&file, "{\"rows\": 3}").unwrap();
+        let e = run_cmd(
+            &args,
+            Shutdown::new(),
+            Box::new(std::io::sink()),
+            &mut Vec::new(),
+        );
+        assert!(e.unwrap_err().to_string().contains("not a soak.json"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

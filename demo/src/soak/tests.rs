@@ -111,6 +111,7 @@ fn nothing_before_the_start_and_no_ticks_give_no_minute() {
 fn row(minute: u64, rss_mb: f64, error: f64) -> Minute {
     Minute {
         minute,
+        in_contact_pct: 100.0,
         rss_mb,
         error_after_stable_pct: Some(error),
         cpu_pct: 50.0 + minute as f64,
@@ -143,6 +144,15 @@ fn the_verdict_is_exact_on_known_rows() {
     assert_eq!(v.minutes_beyond_1_pt, 2);
     assert_eq!(v.cpu_median_pct, 52.0);
     assert_eq!((v.overruns, v.outages), (10, 5));
+    assert_eq!(v.minutes_in_contact, 5);
+    // A minute mostly out of contact (a lift-off) is shown but not judged.
+    let mut lifted = rows.clone();
+    lifted[4].in_contact_pct = 17.0;
+    lifted[4].error_after_stable_pct = Some(100.0);
+    let v = Verdict::of(&lifted);
+    assert_eq!(v.minutes_in_contact, 4);
+    assert_eq!(v.error_median_pct, Some(3.1));
+    assert_eq!(v.minutes_beyond_1_pt, 1);
     // Nothing: no panic, no figure.
     let empty = Verdict::of(&[]);
     assert_eq!(empty.error_median_pct, None);
