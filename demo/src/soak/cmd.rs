@@ -129,9 +129,10 @@ pub fn run_cmd(
     // Checked before the run; minutes.csv is written as it goes.
     let dir = rt::OutDir::prepare(&args.out)?;
     let stream = dir.stream("minutes.csv", HEADER)?;
+    let minutes = Minutes::new("soak", args.delay_ms, lag_s);
     let monitor = std::thread::Builder::new()
         .name("soak-monitor".to_owned())
-        .spawn(move || monitor(&from, lag_s, stream, rows))?;
+        .spawn(move || monitor(&from, minutes, stream, rows))?;
     let outcome = run(&config, shutdown);
     // The helper's sender went with the run; this one goes now, and the monitor ends.
     config.tap = None;
@@ -178,11 +179,10 @@ fn verdict_of(path: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()>
 /// Returns the full minutes and the last partial one.
 fn monitor(
     from: &Receiver<Tapped>,
-    lag_s: f64,
+    mut minutes: Minutes,
     mut stream: rt::out::Stream,
     mut rows: Box<dyn Write + Send>,
 ) -> (Vec<Minute>, Option<Minute>) {
-    let mut minutes = Minutes::new("soak", 0.0, lag_s);
     let mut full = Vec::new();
     let mut last = (
         std::time::Instant::now(),
