@@ -2,7 +2,8 @@
 //!
 //! What it is: readers and writers of PLY (ASCII, binary little- and big-endian) and PCD (ASCII,
 //! binary) point clouds, and voxel-grid downsampling ([`voxel`]). What it is not: no contact
-//! logic (that is `mmt::contact`), no camera (the `sim` crate simulates one); the only file
+//! logic (that is `mmt::contact`; [`budget`] only voxel-downsamples a cloud to its real-time
+//! budget), no camera (the `sim` crate simulates one); the only file
 //! system access is [`load_path`].
 //!
 //!
@@ -18,6 +19,7 @@
 //! Writers ([`encode_ply`], [`encode_pcd`]) produce files of the same formats, for recordings and
 //! round trips.
 
+pub mod budget;
 mod pcd;
 mod ply;
 mod records;

@@ -15,7 +15,7 @@ use crate::run::{DemoConfig, run};
 /// telerobot daemon on the built-in exp-1 scene, the netem shim delaying each direction, the
 /// operator app with the scripted exp-1 device; then the report, its series and its plots.
 #[derive(Clone, Debug, Parser)]
-#[command(name = "demo", version, about)]
+#[command(name = "demo", version, about, allow_negative_numbers = true)]
 pub struct Cli {
     /// One-way delay the netem shim adds in each direction [ms].
     #[arg(
@@ -46,11 +46,28 @@ pub struct Cli {
     /// --delay-ms 0): the loopback latency figure.
     #[arg(long)]
     pub no_shim: bool,
+    /// Recording (both sides, one file) and live view.
+    #[command(flatten)]
+    pub record: record::cli::RecordArgs,
+    /// Pause and resume the recorder (file and live view) every S seconds, and print the
+    /// haptic-loop period while recording and while paused: what recording costs the loop,
+    /// measured in one run (needs --record or --live).
+    #[arg(long, value_name = "S")]
+    pub record_ab_s: Option<f64>,
 }
 
 /// Runs the demo, prints the report and writes its files.
 pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<()> {
-    let config = DemoConfig {
+    match args.record_ab_s {
+        Some(s) if !(s.is_finite() && (0.1..=3600.0).contains(&s)) => {
+            anyhow::bail!("--record-ab-s {s}: expected 0.1 to 3600 seconds")
+        }
+        Some(_) if args.record == record::cli::RecordArgs::default() => {
+            anyhow::bail!("--record-ab-s needs --record or --live")
+        }
+        _ => {}
+    }
+    let mut config = DemoConfig {
         delay_ms: args.delay_ms,
         seconds: args.seconds,
         spin_us: args.rt.spin_us,
@@ -59,6 +76,25 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         ..DemoConfig::default()
     };
     config.validate()?;
+    // Checked before the run: a path that cannot be written must not cost the session.
+    let dir = rt::OutDir::prepare(&args.out)?;
+    config.stream_to = Some(dir.clone());
+    // Created (and checked) before the run; finished below, or dropped (closed) on an error.
+    let recorder = args.record.start(record::Kind::Demo, rt::monotonic_ns())?;
+    config.record = recorder.as_ref().map(record::Recorder::sink);
+    let live = recorder.as_ref().and_then(record::Recorder::live_addr);
+    say(
+        args.json,
+        out,
+        live.map(|a| format!("live view: open ws://{a} in Foxglove or Lichtblick")),
+    )?;
+    let toggler = match (args.record_ab_s, &config.record) {
+        (Some(s), Some(sink)) => Some(
+            record::cli::Toggler::start(sink.clone(), std::time::Duration::from_secs_f64(s))
+                .context("starting the record-ab thread")?,
+        ),
+        _ => None,
+    };
     if !args.json {
         writeln!(
             out,
@@ -67,12 +103,12 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         )?;
         out.flush()?;
     }
-    let outcome = run(&config, shutdown)?;
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let outcome = run(&config, shutdown);
+    drop(toggler);
+    let outcome = outcome?;
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
     for (name, bytes) in files(&outcome.report, &outcome.series)? {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        dir.write_atomic(&name, &bytes)?;
     }
     if args.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
@@ -81,8 +117,30 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         writeln!(
             out,
             "files: {}/report.json, series.csv, force/error/spectrum .svg and .png",
-            dir.display()
+            dir.path().display()
         )?;
+    }
+    say(args.json, out, recorded.as_ref().map(record::cli::summary))?;
+    if let (Some(_), Some([on, off])) = (args.record_ab_s, outcome.record_periods) {
+        let line = format!(
+            "haptic loop period, recording: {on}\nhaptic loop period, paused:    {off}\n\
+             p99 difference (recording − paused): {:+.1} µs",
+            on.p99_us - off.p99_us
+        );
+        say(args.json, out, Some(line))?;
+    }
+    Ok(())
+}
+
+/// A line for the user: on stdout, or on stderr under `--json` (stdout is the report).
+fn say(json: bool, out: &mut dyn Write, line: Option<String>) -> anyhow::Result<()> {
+    if let Some(line) = line {
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
     }
     Ok(())
 }
@@ -100,6 +158,9 @@ mod tests {
             (&["--seconds", "1"][..], "--seconds = 1 is out of range"),
             (&["--delay-ms", "-5"][..], "--delay-ms = -5 is out of range"),
             (&["--delay-ms", "5", "--no-shim"][..], "without the shim"),
+            // Issue 11: a negative value was taken for a flag ("unexpected argument '-1'").
+            (&["--record-ab-s", "-1"][..], "--record-ab-s -1: expected"),
+            (&["--spin-us", "-3"][..], "--spin-us = -3 is out of range"),
         ] {
             let args =
                 Cli::try_parse_from(std::iter::once("demo").chain(flags.iter().copied())).unwrap();
@@ -113,5 +174,23 @@ mod tests {
         }
         let e = Cli::try_parse_from(["demo", "--realtime-priority", "100"]).unwrap_err();
         assert!(e.to_string().contains("--realtime-priority"), "{e}");
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("demo-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let args = Cli::try_parse_from(["demo", "--out", file.to_str().unwrap()]).unwrap();
+        let mut printed = Vec::new();
+        let started = std::time::Instant::now();
+        let e = run_cmd(&args, Shutdown::new(), &mut printed).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(printed.is_empty(), "the banner came before the check");
+        assert!(started.elapsed().as_secs() < 5, "the demo ran first");
+        std::fs::remove_file(&file).unwrap();
     }
 }

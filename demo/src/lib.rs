@@ -17,6 +17,22 @@
 pub mod cli;
 pub mod report;
 pub mod run;
+pub mod soak;
 
 pub use report::{DemoReport, ShimReport};
 pub use run::{DemoConfig, DemoError, Outcome};
+
+/// Logging for the demo's binaries: stderr, warnings only by default (their stdout is the
+/// report) and the safety layer's per-episode events (counted in the report) not at all;
+/// `RUST_LOG` overrides. Colour only on a terminal: a log file or a pipe gets plain text.
+pub fn init_logging() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+                tracing_subscriber::EnvFilter::new("warn,operator::safety=error")
+            }),
+        )
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+}

@@ -28,7 +28,7 @@ use operator::safety::SafetyConfig;
 use crate::report::{DemoReport, ShimReport};
 
 /// The demo's settings.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct DemoConfig {
     /// One-way delay each way \[ms\], 0 to 2000. Default 400 (the thesis's experiment 3).
     pub delay_ms: f64,
@@ -43,6 +43,22 @@ pub struct DemoConfig {
     /// Put the netem shim between the two. Default true; without it (and `delay_ms` 0) the
     /// operator connects to the telerobot directly: the loopback latency figure.
     pub via_shim: bool,
+    /// The recorder both sides record to (one file), if the demo records.
+    pub record: Option<record::RecordSink>,
+    /// The telerobot's scene. Default the built-in exp-1 scene.
+    pub scene: Scene,
+    /// The telerobot's robot. Default its simulated world; `ros2` drives a robot on a ROS 2
+    /// graph (the test arm, in the ROS 2 figures).
+    pub robot: telerobot::robot::RobotConfig,
+    /// Where the operator streams its records as the run goes (the demo's `--out`).
+    pub stream_to: Option<rt::OutDir>,
+    /// Random loss the shim adds in each direction \[%\], 0 to 50. Default 0.
+    pub loss_pct: f64,
+    /// Uniform jitter (half-width) the shim adds in each direction \[ms\], 0 to 100. Default 0.
+    pub jitter_ms: f64,
+    /// The soak's consumer of every tick and measurement; with it, runs up to 24 h are allowed
+    /// (the operator's recording keeps only the tap's `keep_ticks`). Default none: up to 600 s.
+    pub tap: Option<operator::helper::Tap>,
 }
 
 impl Default for DemoConfig {
@@ -54,6 +70,13 @@ impl Default for DemoConfig {
             seed: 1,
             realtime_priority: None,
             via_shim: true,
+            record: None,
+            scene: Scene::exp1(),
+            robot: telerobot::robot::RobotConfig::Sim,
+            stream_to: None,
+            loss_pct: 0.0,
+            jitter_ms: 0.0,
+            tap: None,
         }
     }
 }
@@ -108,11 +131,38 @@ impl DemoConfig {
             (0.0..=2000.0).contains(&self.delay_ms),
             "0 to 2000 ms",
         )?;
+        if self.tap.is_some() {
+            check(
+                "--minutes",
+                self.seconds / 60.0,
+                (60.0..=86_460.0).contains(&self.seconds),
+                "1 to 1440 minutes",
+            )?;
+        } else {
+            check(
+                "--seconds",
+                self.seconds,
+                (5.0..=600.0).contains(&self.seconds),
+                "5 to 600 s",
+            )?;
+        }
         check(
-            "--seconds",
-            self.seconds,
-            (5.0..=600.0).contains(&self.seconds),
-            "5 to 600 s",
+            "--loss-pct",
+            self.loss_pct,
+            (0.0..=50.0).contains(&self.loss_pct),
+            "0 to 50 %",
+        )?;
+        check(
+            "--jitter-ms",
+            self.jitter_ms,
+            (0.0..=100.0).contains(&self.jitter_ms),
+            "0 to 100 ms",
+        )?;
+        check(
+            "--loss-pct/--jitter-ms without the shim",
+            self.loss_pct + self.jitter_ms,
+            self.via_shim || self.loss_pct + self.jitter_ms == 0.0,
+            "0 (only the shim adds loss and jitter)",
         )?;
         check(
             "--delay-ms without the shim",
@@ -136,6 +186,8 @@ pub struct Outcome {
     pub report: DemoReport,
     /// The operator's series.
     pub series: metrics::Series,
+    /// With a recorder: the haptic-loop period while it recorded and while it was paused.
+    pub record_periods: Option<[rt::Summary; 2]>,
 }
 
 /// Runs the demo (about `seconds` plus a few seconds of set-up). `shutdown` ends it early.
@@ -150,7 +202,7 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         ..PeriodicConfig::default()
     };
     let loopback: SocketAddr = ([127, 0, 0, 1], 0).into();
-    let scene = Scene::exp1();
+    let scene = config.scene.clone();
     let telerobot = Telerobot::start(telerobot::RunConfig {
         listen: loopback,
         identity: Identity::read_pem(certs.dir.path(), "telerobot")?,
@@ -160,10 +212,13 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
         )],
         tuning: tuning.clone(),
         start_m: telerobot::RunConfig::default_start(&scene),
+        limits: scene.motion_limits(),
+        robot: config.robot.clone(),
         scene: scene.clone(),
         seed: config.seed,
         periodic,
         realtime_priority: config.realtime_priority,
+        record: config.record.clone(),
     })?;
     let shim = if config.via_shim {
         Some(start_shim(
@@ -188,13 +243,28 @@ pub fn run(config: &DemoConfig, shutdown: Shutdown) -> Result<Outcome, DemoError
     let mut operator = operator?;
     let shim_stats = shim_stats?;
     operator.report.experiment.telerobot_stats = summary.last.node;
+    operator.nodes.telerobot = summary.last.node;
+    let report = DemoReport {
+        run: operator.report.clone(),
+        telerobot: summary,
+        shim: shim_stats.as_ref().map(ShimReport::from),
+    };
+    if let Some(sink) = &config.record {
+        // Again, now with the telerobot's and the shim's figures: the reader takes the last.
+        let extra = [
+            ("telerobot", serde_json::to_value(&report.telerobot)),
+            ("shim", serde_json::to_value(report.shim)),
+        ];
+        let extra = extra
+            .into_iter()
+            .filter_map(|(k, v)| Some((k.to_owned(), v.ok()?)))
+            .collect();
+        operator.record_end_with(sink, extra);
+    }
     Ok(Outcome {
-        report: DemoReport {
-            run: operator.report,
-            telerobot: summary,
-            shim: shim_stats.as_ref().map(ShimReport::from),
-        },
+        report,
         series: operator.series,
+        record_periods: operator.record_periods,
     })
 }
 
@@ -206,7 +276,13 @@ fn start_shim(
     telerobot: SocketAddr,
     spin_ns: i64,
 ) -> Result<netem::ShimHandle, DemoError> {
-    let delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    let mut delay = LinkConfig::delay((config.delay_ms * 1e6).round() as u64);
+    delay.jitter_ns = (config.jitter_ms * 1e6).round() as u64;
+    if config.loss_pct > 0.0 {
+        delay.loss = netem::Loss::Random {
+            probability: config.loss_pct / 100.0,
+        };
+    }
     let mut shim_config = ShimConfig::new(listen, telerobot);
     shim_config.up = delay.clone();
     shim_config.down = delay;
@@ -262,6 +338,13 @@ fn operator_config(
             seed: config.seed,
             delay_ms: config.delay_ms,
         }),
+        // Each camera frame is recorded once, by the telerobot.
+        record: config
+            .record
+            .as_ref()
+            .map(record::RecordSink::without_clouds),
+        stream_to: config.stream_to.clone(),
+        tap: config.tap.clone(),
     }
 }
 

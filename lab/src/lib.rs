@@ -8,9 +8,10 @@
 //! - [`benchmark`]: the object-class benchmark — the experiment over a seeded class of objects
 //!   and named corner cases, several motions, delays and sensor presets, with percentiles;
 //! - [`report`] and [`plot`]: the files of a run (`report.json`, `series.csv`, force, error and
-//!   spectrum plots as SVG and PNG; the font lives here);
-//! - [`cli`]: the `mmt` binary's commands (`experiment`, `benchmark`, `transfer`, `estimate`,
-//!   `stress`, `work-precision`, `contact-bench`).
+//!   spectrum plots as SVG and PNG; the font lives here); [`recorded`]: the same report computed
+//!   again from a run's recording (`mmt report FILE.mcap`);
+//! - [`cli`]: the `mmt` binary's commands (`experiment`, `benchmark`, `report`, `transfer`,
+//!   `estimate`, `stress`, `work-precision`, `contact-bench`).
 //!
 //! What it is not: no numerics of its own (they are `mmt`'s), no node logic (`node`'s), no
 //! figures of its own (`metrics` computes them, for the networked operator too). Neither daemon
@@ -21,4 +22,5 @@ pub mod benchmark;
 pub mod cli;
 pub mod experiment;
 pub mod plot;
+pub mod recorded;
 pub mod report;

@@ -9,7 +9,7 @@ use node::operator::OperatorStats;
 
 use crate::Series;
 use node::telerobot::TelerobotStats;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sim::scene::Scene;
 
 /// One frequency band of the error.
@@ -44,26 +44,33 @@ pub struct Window {
     pub t_s: f64,
     /// RMS error, % of the RMS measured force; `None` out of contact.
     pub rms_error_pct: Option<f64>,
+    /// The window contains an outage (no data from the telerobot for 100 ms or more): its
+    /// figure is not the model's error alone. Set by whoever knows the arrivals (the networked
+    /// operator's report); `false` in-process.
+    #[serde(default)]
+    pub outage: bool,
 }
 
 /// Estimated against true parameters.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ParameterReport {
-    /// Axis group.
-    pub axes: &'static str,
+    /// Axis group: `normal` or `tangential`.
+    pub axes: String,
     /// `(name, true, estimated, error %)`.
+    #[serde(deserialize_with = "nullable::values")]
     pub values: Vec<(String, f64, f64, f64)>,
     /// The back-solve's confidence in the final set: `{"kind":"low","condition":…}` when the
     /// parameters are nearly unobservable (e.g. k1 ≫ k2) and their errors amplified.
     pub confidence: Confidence,
     /// Condition number of `∂ log θ/∂ log φ` at the final set.
+    #[serde(deserialize_with = "nullable::f64")]
     pub condition: f64,
     /// Confirmed sets of this group whose back-solve reported low confidence, and all confirmed
     /// sets, when the estimator's counters are at hand (the in-process experiment).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub low_confidence_updates: Option<u64>,
     /// All confirmed sets of this group (with `low_confidence_updates`).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub confirmed_updates: Option<u64>,
 }
 
@@ -161,19 +168,21 @@ pub struct RunInfo {
 }
 
 /// One estimator's counters, for the report.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EstimatorReport {
     /// Axis group (`normal`, `tangential`).
-    pub axes: &'static str,
+    pub axes: String,
     /// Back-solves, gate rejections by gate, confidence-gate withholdings, confirmed sets.
     pub stats: EstimatorStats,
 }
 
-/// What the nodes know, for the report.
-#[derive(Clone, Debug, Default)]
+/// What the nodes know, for the report (recorded at the end of a run, so that a report computed
+/// again from a recording has it).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct NodeInfo {
     /// Each estimator's counters (the in-process experiment knows them; a remote operator does
     /// not).
+    #[serde(default)]
     pub estimators: Vec<EstimatorReport>,
     /// Estimated against true parameters.
     pub parameters: Vec<ParameterReport>,
@@ -312,6 +321,7 @@ fn error_over_time(s: &Series) -> Vec<Window> {
             Window {
                 t_s: start as f64 * dt,
                 rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
+                outage: false,
             }
         })
         .collect()
@@ -432,7 +442,7 @@ pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<Paramet
             Params::Free => vec![],
         };
         out.push(ParameterReport {
-            axes,
+            axes: axes.to_owned(),
             values,
             confidence: latest.confidence(),
             condition: latest.condition(),
@@ -441,4 +451,25 @@ pub fn parameter_report(scene: &Scene, sets: [Option<&Gated>; 2]) -> Vec<Paramet
         });
     }
     out
+}
+
+/// JSON has no NaN or infinity: `serde_json` writes them as `null`. A report read back (from a
+/// recording's `/run/end`) takes `null` as NaN: the value was not a finite number.
+mod nullable {
+    use serde::{Deserialize, Deserializer};
+
+    pub(super) fn f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    type Row = (String, Option<f64>, Option<f64>, Option<f64>);
+    type Value = (String, f64, f64, f64);
+
+    pub(super) fn values<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Value>, D::Error> {
+        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        Ok(Vec::<Row>::deserialize(d)?
+            .into_iter()
+            .map(|(name, a, b, c)| (name, nan(a), nan(b), nan(c)))
+            .collect())
+    }
 }

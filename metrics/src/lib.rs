@@ -6,12 +6,14 @@
 //! stable, per band and over time, time to stable, reconstruction error, contact-switch latency,
 //! parameter errors against a known truth), the spectra behind the bands ([`spectrum`]) and the
 //! stdout [`table`]. The in-process harness (`lab`) and the networked operator app build the
-//! same [`Series`] and print the same report.
+//! same [`Series`] and print the same report; [`networked`] builds a networked run's series and
+//! figures from what the operator recorded, for the app and for `mmt report FILE.mcap` alike.
 //!
 //! What it is not: no plots (those are `lab`'s), no files, no clock.
 
 mod analyse;
 mod csv;
+pub mod networked;
 mod series;
 pub mod spectrum;
 mod table;

@@ -123,7 +123,7 @@ fn main() -> ExitCode {
     match try_main() {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("netem: {error:#}");
+            eprintln!("netem: {}", rt::exit::message(error.as_ref()));
             ExitCode::from(2)
         }
     }
@@ -148,10 +148,10 @@ fn command() -> Command {
         .after_help(AFTER_HELP)
         .arg(Arg::new("listen").long("listen").value_name("ADDR").required(true).help("Address the client sends to, e.g. 127.0.0.1:4434"))
         .arg(Arg::new("forward").long("forward").value_name("ADDR").required(true).help("Address packets from the client go to, e.g. 127.0.0.1:4433"))
-        .arg(Arg::new("seed").long("seed").value_name("N").help("Seed of the links' random draws; the same seed gives the same fates [default: 0]"))
+        .arg(Arg::new("seed").long("seed").allow_hyphen_values(true).value_name("N").help("Seed of the links' random draws; the same seed gives the same fates [default: 0]"))
         .arg(Arg::new("log").long("log").value_name("FILE.csv").help("Write one CSV row per packet (see below)"))
-        .arg(Arg::new("spin").long("spin").value_name("TIME").help("Busy-spin this long before each release for µs accuracy; 0 = sleep only [default: 200us]"))
-        .arg(Arg::new("rt-priority").long("rt-priority").value_name("1-99").help("Run the scheduler thread under SCHED_FIFO at this priority (needs CAP_SYS_NICE); bounds the lateness tail on a loaded machine [default: off]"));
+        .arg(Arg::new("spin").long("spin").allow_hyphen_values(true).value_name("TIME").help("Busy-spin this long before each release for µs accuracy; 0 = sleep only [default: 200us]"))
+        .arg(Arg::new("rt-priority").long("rt-priority").allow_hyphen_values(true).value_name("1-99").help("Run the scheduler thread under SCHED_FIFO at this priority (needs CAP_SYS_NICE); bounds the lateness tail on a loaded machine [default: off]"));
     for knob in KNOBS {
         let [flag, up, down] = knob.flags;
         command = command.arg(
@@ -159,7 +159,7 @@ fn command() -> Command {
                 .long(flag)
                 .value_name(knob.value)
                 .help(knob.help)
-                .allow_negative_numbers(true)
+                .allow_hyphen_values(true)
                 .help_heading("Link (both directions; --up-FLAG / --down-FLAG override)"),
         );
         for name in [up, down] {
@@ -167,7 +167,7 @@ fn command() -> Command {
                 Arg::new(name)
                     .long(name)
                     .value_name(knob.value)
-                    .allow_negative_numbers(true)
+                    .allow_hyphen_values(true)
                     .hide(true),
             );
         }
@@ -437,6 +437,29 @@ mod tests {
         ];
         argv.extend_from_slice(args);
         shim_config(&command().try_get_matches_from(argv)?)
+    }
+
+    /// Issue 11: `--delay -5ms` gave clap's "unexpected argument" while `--delay=-5ms` gave
+    /// the value's error; both forms now give the value's error.
+    #[test]
+    fn a_negative_value_is_checked_in_both_forms() {
+        for (flag, value) in [
+            ("--delay", "-5ms"),
+            ("--up-delay", "-5ms"),
+            ("--jitter", "-1ms"),
+            ("--loss", "-1%"),
+            ("--rate", "-5mbit"),
+            ("--spin", "-1us"),
+            ("--seed", "-1"),
+            ("--rt-priority", "-1"),
+        ] {
+            let joined = format!("{flag}={value}");
+            let spaced = parse(&[flag, value]).unwrap_err();
+            let equals = parse(&[&joined]).unwrap_err();
+            let (spaced, equals) = (format!("{spaced:#}"), format!("{equals:#}"));
+            assert_eq!(spaced, equals, "{flag}");
+            assert!(spaced.contains(flag) && spaced.contains(value), "{spaced}");
+        }
     }
 
     #[test]

@@ -12,6 +12,9 @@
 //! - [`operator::OperatorNode`]: device position → contact on the latest received cloud (remote
 //!   contact as fallback) → renderers with the latest accepted parameters → force and a command;
 //!   a short history to rewind and replay.
+//! - [`guard`]: the motion guard every robot bridge goes through ([`Guarded`]): no command
+//!   before the robot's first state, hold on a stale state, a workspace box, a largest step and
+//!   speed, faults on non-finite readings, checks at each session.
 //! - Settings: [`TelerobotSettings`] from the telerobot's scene, [`OperatorSettings`] from the
 //!   `Welcome` alone; conversions between the core's types and the wire's.
 //!
@@ -26,6 +29,7 @@
 //! crate is one [`RobotBridge`]), no numerics of its own (`mmt`'s).
 
 mod bridge;
+pub mod guard;
 mod history;
 pub mod operator;
 mod playout;
@@ -34,7 +38,8 @@ pub mod telerobot;
 mod tracker;
 mod wire;
 
-pub use bridge::{BridgeSample, RobotBridge, RobotSample, Target};
+pub use bridge::{BridgeSample, Reading, RobotBridge, RobotSample, Target};
+pub use guard::{GuardStats, Guarded, MotionGuard, MotionLimits};
 pub use settings::{
     KnownSurface, OperatorSettings, RATE_RANGE_HZ, SettingsError, TelerobotSettings,
 };

@@ -69,7 +69,7 @@ pub struct OperatorOutput {
 }
 
 /// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct OperatorStats {
     /// Ticks stepped.
     pub ticks: u64,
@@ -424,6 +424,11 @@ impl OperatorNode {
     /// Counters.
     pub fn stats(&self) -> OperatorStats {
         self.stats
+    }
+
+    /// Where the local proxy is \[m\], while it runs (local contact on, a cloud received).
+    pub fn proxy_m(&self) -> Option<[f64; 3]> {
+        (self.config.local_contact && self.cloud.is_some()).then(|| self.proxy.position())
     }
 
     /// A model is being rendered.

@@ -15,6 +15,7 @@ use mmt::render::RendererConfig;
 use protocol::telerobot_to_operator::SceneSummary;
 use serde::{Deserialize, Serialize};
 
+use crate::guard::MotionLimits;
 use crate::wire::structure_from_wire;
 
 /// The control rates the loops run at \[Hz\].
@@ -41,6 +42,9 @@ pub struct TelerobotSettings {
     /// A contact surface known in advance (a simulated scene's), used for contact until the
     /// first cloud arrives; `None` for a real robot, which knows only what its camera sees.
     pub known_surface: Option<KnownSurface>,
+    /// What the robot may be told to do, whatever the operator sends (the scene's `[limits]`,
+    /// or [`MotionLimits::around`] its surface point).
+    pub limits: MotionLimits,
 }
 
 /// A plane through `point_m` with outward unit `normal`, world frame.

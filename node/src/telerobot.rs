@@ -16,7 +16,7 @@
 use std::sync::Arc;
 
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy, SurfaceFrame};
-use mmt::estimator::{AxisSample, Estimator, EstimatorError, EstimatorStats};
+use mmt::estimator::{AxisSample, Estimator, EstimatorError, EstimatorStats, Update};
 use mmt::model::Structure;
 use mmt::model::gates::Gated;
 use mmt::vec3;
@@ -47,7 +47,7 @@ pub struct CommandSample {
 }
 
 /// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TelerobotStats {
     /// Ticks stepped.
     pub ticks: u64,
@@ -57,6 +57,10 @@ pub struct TelerobotStats {
     pub commands: u64,
     /// Commands dropped: duplicates, older than the one executing, or not finite.
     pub stale_commands: u64,
+    /// Commands refused for an implausible playout time: their lag (arrival − sample time)
+    /// differs from the session's first command's by more than the limit
+    /// ([`crate::MotionLimits::max_clock_jump_ns`]).
+    pub implausible_commands: u64,
     /// Commands passed over because a newer one's turn had come (backlog after a stall).
     pub skipped_commands: u64,
     /// Samples with a non-finite value (dropped).
@@ -89,6 +93,9 @@ pub struct TelerobotNode {
     last_frame: Option<SurfaceFrame>,
     shear_anchor: [f64; 2],
     reconstruction: Option<(f64, f64)>,
+    updates: [Option<Update>; 2],
+    /// The session's first accepted command's lag (arrival − sample time) \[ns\].
+    reference_lag_ns: Option<i64>,
     stats: TelerobotStats,
 }
 
@@ -124,13 +131,18 @@ impl TelerobotNode {
             last_frame: None,
             shear_anchor: [0.0; 2],
             reconstruction: None,
+            updates: [None; 2],
+            reference_lag_ns: None,
             stats: TelerobotStats::default(),
             settings,
         })
     }
 
     /// A command arrived. It is held until its turn ([`super::playout`]); duplicates, commands
-    /// older than the one executing and non-finite ones are dropped and counted.
+    /// older than the one executing and non-finite ones are dropped and counted. A command whose
+    /// lag (arrival − sample time) is further than the limit from the session's first command's
+    /// has an implausible playout time (a clock jumping by hours would hold every later command
+    /// back, or make it stale): it is refused and counted.
     pub fn on_command(&mut self, command: CommandSample) {
         let finite = command
             .position_m
@@ -139,6 +151,12 @@ impl TelerobotNode {
             .all(|v| v.is_finite());
         if !finite {
             self.stats.stale_commands += 1;
+            return;
+        }
+        let lag = command.received_ns.saturating_sub(command.sample_time_ns);
+        let reference = *self.reference_lag_ns.get_or_insert(lag);
+        if lag.saturating_sub(reference).saturating_abs() > self.settings.limits.max_clock_jump_ns {
+            self.stats.implausible_commands += 1;
             return;
         }
         match self.playout.push(command) {
@@ -194,6 +212,7 @@ impl TelerobotNode {
         self.out.clear();
         self.stats.ticks += 1;
         self.reconstruction = None;
+        self.updates = [None; 2];
         if !sample.is_finite() {
             self.stats.rejected_samples += 1;
             return &self.out;
@@ -237,6 +256,7 @@ impl TelerobotNode {
             // the force is clamped at 0, which the linear regression would read as low damping.
             let loaded = s.force_n - est.tare_n()[0] > NORMAL_LOADED_N;
             let u = est.step(t, &[s], in_contact && loaded);
+            self.updates[0] = Some(u);
             if let Some(g) = u.confirmed {
                 self.latest_normal = Some(g);
                 self.parameters_sent_ns = None;
@@ -259,6 +279,7 @@ impl TelerobotNode {
         }
         if let Some(est) = &mut self.tangential {
             let u = est.step(t, &samples, in_contact);
+            self.updates[1] = Some(u);
             if u.new_object {
                 self.model_id = est.model_id();
             }
@@ -389,6 +410,17 @@ impl TelerobotNode {
         [&self.normal, &self.tangential]
             .iter()
             .all(|e| e.as_ref().is_none_or(|e| e.is_confident()))
+    }
+
+    /// The datagrams of the last tick (what [`TelerobotNode::step`] returned).
+    pub fn datagrams(&self) -> &[Datagram] {
+        &self.out
+    }
+
+    /// What each estimator did this tick, `[normal, tangential]`: its gate verdict and any set
+    /// it confirmed (`None`: the scene has no such estimator, or the tick ran none).
+    pub fn updates(&self) -> [Option<Update>; 2] {
+        self.updates
     }
 
     /// This tick's `(Σ y², Σ (y − ψᵀθ̂)²)` of the tangential estimator, `θ̂` from before the

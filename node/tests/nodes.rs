@@ -261,3 +261,33 @@ fn the_robot_holds_after_50_ms_without_commands() {
     assert!(!target.holding);
     assert_eq!(target.position_m, [0.0, 0.2, 0.01]);
 }
+
+/// A command whose clock jumped (sample time hours ahead, or far behind) has an implausible
+/// playout time: refused and counted, and the session's commands still play. Before the check, a
+/// command sampled an hour ahead executed and made every later command stale.
+#[test]
+fn commands_with_an_implausible_playout_time_are_refused() {
+    const MS: i64 = 1_000_000;
+    let settings = Scene::exp1().telerobot_settings();
+    assert_eq!(settings.limits.max_clock_jump_ns, 10_000 * MS);
+    let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
+    // The operator's clock is 5 s ahead of ours and the link takes 300 ms: lag −4.7 s.
+    let command = |t: i64, y: f64, sample: i64| CommandSample {
+        sample_time_ns: sample,
+        position_m: [0.0, y, 0.01],
+        velocity_m_per_s: [0.0; 3],
+        received_ns: t,
+    };
+    let ahead = 5_000 * MS - 300 * MS;
+    node.on_command(command(MS, 0.01, MS + ahead));
+    node.on_command(command(2 * MS, 0.02, 2 * MS + 3_600_000 * MS)); // an hour ahead
+    node.on_command(command(3 * MS, 0.03, i64::MIN)); // garbage
+    node.on_command(command(4 * MS, 0.04, 4 * MS + ahead + 9_000 * MS)); // 9 s: plausible
+    let stats = node.stats();
+    assert_eq!((stats.implausible_commands, stats.commands), (2, 2));
+    // Both plausible ones play, in order.
+    let t = node.target(4 * MS, [0.0; 3]);
+    assert_eq!(t.position_m, [0.0, 0.01, 0.01]);
+    node.on_command(command(5 * MS, 0.05, 5 * MS + ahead));
+    assert_eq!(node.stats().commands, 3);
+}

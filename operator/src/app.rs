@@ -28,6 +28,8 @@ use crate::report::{self, NetworkedReport, RunFacts};
 use crate::safety::{SafetyConfig, SafetyError, SafetyLayer};
 use node::{OperatorSettings, SettingsError};
 use protocol::telerobot_to_operator::Welcome;
+use record::RecordSink;
+use record::schema::{RunEnd, RunStart};
 
 /// Everything `operator run` needs, validated.
 #[derive(Clone, Debug)]
@@ -55,6 +57,18 @@ pub struct RunConfig {
     /// What the run knows beyond the wire (the demo): the scene's truth, the seed and the set
     /// delay.
     pub known: Option<Known>,
+    /// The recorder (`--record`, `--live`), if the run records: every tick, measurement,
+    /// message taken, cloud, link statistics and event goes to it from the helper thread, and
+    /// the run's start and end.
+    pub record: Option<RecordSink>,
+    /// Where the run's records are streamed as it goes (`--out`, checked before the run):
+    /// `ticks.csv` and `measurements.csv`, flushed every [`crate::helper::STREAM_FLUSH`], so
+    /// that a killed run leaves them readable up to the last flush.
+    pub stream_to: Option<rt::OutDir>,
+    /// A consumer of every tick and measurement as the run goes, and how many the run's own
+    /// recording keeps (the soak: per-minute figures, flat memory). `None`: the recording keeps
+    /// the first [`helper::MAX_RECORDED_TICKS`].
+    pub tap: Option<helper::Tap>,
 }
 
 /// What the demo knows about the telerobot.
@@ -124,10 +138,22 @@ pub struct Outcome {
     pub report: NetworkedReport,
     /// The series (for the files of `--out`).
     pub series: Series,
+    /// What the nodes knew at the end (the report's `NodeInfo`).
+    pub nodes: metrics::NodeInfo,
+    /// The newest surface frame received (the report's axes).
+    pub frame: Option<protocol::telerobot_to_operator::SurfaceFrame>,
+    /// The clock offset at the end (telerobot − operator) \[ns\].
+    pub final_offset_ns: Option<i64>,
+    /// Haptic-loop ticks run.
+    pub ticks: u64,
+    /// With a recorder: the haptic-loop period while it recorded and while it was paused
+    /// (`helper::Recording::periods`).
+    pub record_periods: Option<[rt::Summary; 2]>,
 }
 
 /// Runs the operator until the run's length or `shutdown`, then reports.
 pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
+    let run_started = Instant::now();
     let mut device = open_device(&config.device, &config.open)?;
     let spec = device.spec().clone();
     let mut safety = SafetyLayer::new(&spec, &config.safety)?;
@@ -158,11 +184,13 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
         link: link.clone(),
         exchange: std::sync::Arc::new(Exchange::default()),
         shutdown: shutdown.clone(),
-        ticks: config
-            .seconds
-            .map(|s| (s * 1e9 / settings.period_ns as f64).round() as u64),
+        // What is left of `--seconds` after waiting for the session.
+        ticks: config.seconds.map(|s| {
+            let left = (s - run_started.elapsed().as_secs_f64()).max(0.0);
+            (left * 1e9 / settings.period_ns as f64).round() as u64
+        }),
     };
-    let loops = run_loops(&config, haptic, settings.period_ns)?;
+    let loops = run_loops(&config, haptic, settings.period_ns, &welcome)?;
     report(&config, &welcome, settings.period_ns, &link, network, loops)
 }
 
@@ -246,13 +274,30 @@ struct Loops {
 
 /// Starts the helper thread, then runs `haptic` on its own thread at `period_ns` until it
 /// stops; then stops the helper.
-fn run_loops(config: &RunConfig, haptic: HapticLoop, period_ns: i64) -> Result<Loops, RunError> {
+fn run_loops(
+    config: &RunConfig,
+    haptic: HapticLoop,
+    period_ns: i64,
+    welcome: &Welcome,
+) -> Result<Loops, RunError> {
     let helper_stop = Shutdown::new();
+    let streams = match &config.stream_to {
+        Some(dir) => Some(helper::Streams::open(dir).map_err(|e| RunError::Io {
+            what: "the streamed records",
+            error: std::io::Error::other(e.to_string()),
+        })?),
+        None => None,
+    };
     let helper = helper::spawn(
         haptic.link.clone(),
         std::sync::Arc::clone(&haptic.exchange),
         haptic.session,
         config.node,
+        helper::Outputs {
+            record: config.record.clone(),
+            streams,
+            tap: config.tap.clone(),
+        },
         helper_stop.clone(),
     )
     .map_err(io("the helper thread"))?;
@@ -262,7 +307,19 @@ fn run_loops(config: &RunConfig, haptic: HapticLoop, period_ns: i64) -> Result<L
     };
     let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
     let start_ns = periodic.start_ns();
+    if let Some(sink) = &config.record {
+        let start = run_start(config, &welcome.scene, start_ns, period_ns);
+        sink.send_one(start_ns, record::Message::Run(Box::new(start)));
+    }
     let timing = periodic.timing();
+    if let Some(tap) = &config.tap {
+        let start = helper::Tapped::Start {
+            start_ns,
+            period_ns,
+            timing: std::sync::Arc::clone(&timing),
+        };
+        let _ = tap.to.send(start);
+    }
     let started = Instant::now();
     let haptic = rt::spawn("haptic-loop", config.realtime_priority, move || {
         haptic.run(periodic)
@@ -312,23 +369,98 @@ fn report(
         tracing::warn!("the network task ended with: {e}");
     }
     let facts = RunFacts {
-        experiment: config.experiment.clone(),
-        scene: welcome.scene.name.clone(),
-        left_out: welcome.scene.left_out.clone(),
-        device: config.device.to_string(),
-        seed: config.known.as_ref().map_or(0, |k| k.seed),
-        set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+        run: metrics::networked::NetworkedRun {
+            experiment: config.experiment.clone(),
+            scene: welcome.scene.name.clone(),
+            left_out: welcome.scene.left_out.clone(),
+            device: config.device.to_string(),
+            seed: config.known.as_ref().map_or(0, |k| k.seed),
+            set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+            start_ns: loops.start_ns,
+            period_ns,
+            final_offset_ns: stats.clock_offset_ns,
+            frame: None,
+        },
         truth: config.known.as_ref().map(|k| k.scene.clone()),
-        start_ns: loops.start_ns,
-        period_ns,
-        final_offset_ns: stats.clock_offset_ns,
         link: final_link,
         measurements_overwritten: overwritten,
         timing: loops.timing.report(),
         wall_seconds: loops.wall_seconds,
     };
     let (series, report) = report::build(&facts, &recording, &end);
-    Ok(Outcome { report, series })
+    let outcome = Outcome {
+        report,
+        series,
+        nodes: report::node_info(facts.truth.as_ref(), &end),
+        frame: end.frame,
+        final_offset_ns: stats.clock_offset_ns,
+        ticks: end.ticks,
+        record_periods: config
+            .record
+            .as_ref()
+            .map(|_| recording.periods.each_ref().map(rt::Histogram::summary)),
+    };
+    if let Some(sink) = &config.record {
+        outcome.record_end(sink);
+    }
+    Ok(outcome)
+}
+
+/// The recording's `/run` of the operator side.
+fn run_start(
+    config: &RunConfig,
+    scene: &protocol::telerobot_to_operator::SceneSummary,
+    start_ns: i64,
+    period_ns: i64,
+) -> RunStart {
+    RunStart {
+        side: record::Side::Operator,
+        experiment: config.experiment.clone(),
+        start_ns,
+        period_ns,
+        scene_name: scene.name.clone(),
+        left_out: scene.left_out.clone(),
+        proxy_radii_m: scene.proxy_radii_m,
+        device: Some(config.device.to_string()),
+        seed: config.known.as_ref().map(|k| k.seed),
+        set_delay_ms: config.known.as_ref().map(|k| k.delay_ms),
+        scene: config.known.as_ref().map(|k| k.scene.clone()),
+        config: None,
+        axes: None,
+        tool_start_m: None,
+    }
+}
+
+impl Outcome {
+    /// Records the run's end (`/run/end`): what the report needs beyond the recorded streams.
+    /// The demo records it again once it has added the telerobot's and the shim's figures; a
+    /// reader takes the last.
+    pub fn record_end(&self, sink: &RecordSink) {
+        self.record_end_with(sink, serde_json::Map::new());
+    }
+
+    /// [`Outcome::record_end`] with counters the operator does not know added (the demo's
+    /// telerobot and shim figures, under their keys in its `report.json`).
+    pub fn record_end_with(
+        &self,
+        sink: &RecordSink,
+        extra: serde_json::Map<String, serde_json::Value>,
+    ) {
+        let mut counters = self.report.counters();
+        if let Some(all) = counters.as_object_mut() {
+            all.extend(extra);
+        }
+        let end = RunEnd {
+            side: record::Side::Operator,
+            ticks: self.ticks,
+            nodes: Some(self.nodes.clone()),
+            frame: self.frame.map(record::schema::FrameRec::from),
+            final_offset_ns: self.final_offset_ns,
+            counters: Some(counters),
+            recorder_dropped: sink.dropped(),
+        };
+        sink.send_one(monotonic_ns(), record::Message::RunEnd(Box::new(end)));
+    }
 }
 
 /// Waits for the first session; returns its number.
@@ -352,7 +484,17 @@ fn wait_for_session(
         if shutdown.wait_timeout(Duration::from_millis(10)) {
             return Err(RunError::Stopped);
         }
-        if let Some(timeout) = config.first_session_timeout
+        // `--seconds` bounds the whole run, connected or not.
+        let bound = [
+            config.first_session_timeout,
+            config
+                .seconds
+                .and_then(|s| Duration::try_from_secs_f64(s).ok()),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        if let Some(timeout) = bound
             && waited.elapsed() > timeout
         {
             return Err(RunError::NoSession {

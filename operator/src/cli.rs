@@ -7,7 +7,7 @@
 //! - `operator gen-cert --out DIR` — writes `DIR/operator.crt` and `DIR/operator.key`.
 //! - `operator run --device SPEC --connect ADDR --identity DIR --trust TELEROBOT_CRT [--seconds S]
 //!   [--position-scale F] [--device-origin X,Y,Z] [--out DIR] [--json]` — runs the operator app ([`crate::app`]) and prints its report; without
-//!   the network flags it only opens the device and says what it is (exits 2).
+//!   the network flags it only opens the device and says what it is (exits 0: a device check).
 //!
 //! Not here: logging and Ctrl-C set-up (main), anything of the haptic loop.
 
@@ -85,16 +85,20 @@ impl SdkArgs {
 
 /// `operator devices` options.
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct DevicesArgs {
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
 }
 
-/// `operator run` options.
+/// `operator run` options. Negative numbers are values (`--seconds -1` is refused by the range
+/// check, as `--seconds=-1` is, not taken for a flag).
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct RunArgs {
-    /// The device: scripted:NAME, replay:FILE.csv, spacemouse or omega.
+    /// The device: scripted:NAME, replay:FILE.csv, replay:FILE.mcap (a recording), spacemouse
+    /// or omega.
     #[arg(long, value_name = "SPEC")]
     pub device: DeviceSpec,
     /// Time over which force ramps in after enabling [ms].
@@ -103,7 +107,7 @@ pub struct RunArgs {
     /// SpaceMouse speed at full deflection [m/s].
     #[arg(long, value_name = "M_PER_S", default_value_t = 0.1)]
     pub spacemouse_speed: f64,
-    /// Commanded metres per device metre (translation only; > 0). Below 1 the tool moves less
+    /// Commanded metres per device metre (translation only; > 0, at most 20). Below 1 the tool moves less
     /// than the hand, for fine work; the device's clutch button repositions the hand.
     #[arg(long, value_name = "F", default_value_t = 1.0)]
     pub position_scale: f64,
@@ -126,9 +130,10 @@ pub struct RunArgs {
 /// Why `operator run`'s options are refused.
 #[derive(Debug, thiserror::Error)]
 pub enum RunArgsError {
-    /// `--position-scale` zero, negative or not finite.
+    /// `--position-scale` zero, negative, not finite or above 20.
     #[error(
-        "--position-scale {0}: expected a finite number > 0 (commanded metres per device metre; 1 = one-to-one)"
+        "--position-scale {0}: expected a finite number > 0 and at most 20 (commanded metres per \
+         device metre; 1 = one-to-one)"
     )]
     PositionScale(f64),
 }
@@ -137,7 +142,7 @@ impl RunArgs {
     /// The safety settings these options give.
     pub fn safety(&self) -> Result<SafetyConfig, RunArgsError> {
         let scale = self.position_scale;
-        if !(scale.is_finite() && scale > 0.0) {
+        if crate::safety::PositionScale::new(scale).is_err() {
             return Err(RunArgsError::PositionScale(scale));
         }
         Ok(SafetyConfig {
@@ -330,9 +335,19 @@ fn render_backends(s: &mut String) -> std::fmt::Result {
 
 /// `operator run`: with the network flags, runs the operator app ([`crate::app::run`]) until
 /// `--seconds` or `shutdown` and prints the report; without them, opens the device, says what it
-/// is and stops (exit code 2: nothing to run).
+/// is and stops (a device check: success when the device opened). `--out` is created and
+/// checked first, before anything else can take time.
 pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::Result<ExitCode> {
+    let dir = args
+        .run
+        .out
+        .as_deref()
+        .map(rt::OutDir::prepare)
+        .transpose()?;
     let safety = args.safety()?;
+    // Every flag is checked before anything is printed or opened (issue 11: a range error came
+    // after the "network:" line), also when no telerobot is given.
+    args.run.periodic()?;
     let net = args.net.config()?;
     let options = OpenOptions {
         scripted_length_s: args.run.seconds,
@@ -364,7 +379,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             out,
             "operator run: no telerobot given (--connect, --identity, --trust); device opened and closed again."
         )?;
-        return Ok(ExitCode::from(2));
+        return Ok(ExitCode::SUCCESS);
     };
     let line = format!(
         "network: telerobot {} pinned to {}, as '{}'",
@@ -378,9 +393,9 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     }
     run::run_cmd(
         &args.run,
+        dir,
         net,
-        args.device.clone(),
-        options,
+        (args.device.clone(), options),
         safety,
         shutdown,
         out,

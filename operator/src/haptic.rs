@@ -14,7 +14,8 @@
 //!    stalled it keeps rendering from the last model it has;
 //! 5. the safety layer shapes the force (saturation, workspace, watchdog, rate) for `servo_cf`;
 //! 6. the command goes to the network task while a session is open; a [`TickRecord`] goes to the
-//!    helper thread for the report.
+//!    helper thread for the report and, with `--record`/`--live`, the recording (the record
+//!    carries the messages the tick took, so the recording needs no second path to the loop).
 //!
 //! Nothing here allocates, frees, locks or logs per tick (the safety layer and the device log one
 //! event when a rule starts or stops acting, or the device faults).
@@ -25,7 +26,7 @@ use std::time::Duration;
 use mmt::contact::CloudIndex;
 use mmt::render::RendererStats;
 use node::operator::{OperatorNode, OperatorStats};
-use protocol::telerobot_to_operator::{Message, Parameters, SurfaceFrame};
+use protocol::telerobot_to_operator::{Contact, Message, Parameters, StateSync, SurfaceFrame};
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
@@ -37,19 +38,44 @@ use mmt::vec3::Vec3;
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;
 
-/// What one tick did, for the report (by tick number).
+/// What one tick did, for the report and the recording (by tick number). Plain values: pushing
+/// one allocates nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TickRecord {
     /// Tick number (the command's sample time is `start + index·period`).
     pub index: u64,
+    /// The session whose node ran the tick.
+    pub session: u64,
+    /// The tick's nominal time, the command's sample time [ns, `rt::monotonic_ns`].
+    pub sample_time_ns: i64,
+    /// When the tick actually started [ns].
+    pub started_ns: i64,
+    /// The device's measured position \[m\] (device coordinates) and velocity \[m/s\].
+    pub device_m: [[f64; 3]; 2],
     /// Position handed to the node (the command) \[m\], world frame.
     pub position_m: [f64; 3],
+    /// Velocity handed to the node \[m/s\].
+    pub velocity_m_per_s: [f64; 3],
     /// The node's force \[N\]: what the model renders, before the safety layer.
     pub force_n: [f64; 3],
+    /// The force written to the device \[N\], after the safety layer.
+    pub force_device_n: [f64; 3],
     /// The node is in contact.
     pub in_contact: bool,
     /// The node renders a model.
     pub rendering: bool,
+    /// The node's local proxy \[m\], while it runs.
+    pub proxy_m: Option<[f64; 3]>,
+    /// The safety rules acting (`SafetyLayer::active_bits`).
+    pub safety_bits: u32,
+    /// Device faults so far.
+    pub device_faults: u64,
+    /// The parameters the tick took, with their arrival time [ns].
+    pub parameters: Option<(Parameters, i64)>,
+    /// The telerobot contact state the tick took, with its arrival time [ns].
+    pub contact: Option<(Contact, i64)>,
+    /// The state sync the tick took, with its arrival time [ns].
+    pub state_sync: Option<(StateSync, i64)>,
 }
 
 /// What the haptic loop exchanges with the helper thread (all lock-free).
@@ -165,7 +191,14 @@ impl HapticLoop {
             state.last_params_ns = None;
             state.sessions += 1;
         }
-        self.take_messages(now, state);
+        let mut record = TickRecord {
+            index: tick.index,
+            session: self.session,
+            sample_time_ns: now,
+            started_ns: tick.started_ns,
+            ..TickRecord::default()
+        };
+        self.take_messages(now, state, &mut record);
         if let Some((session, index)) = self.exchange.clouds.take()
             && session == self.session
         {
@@ -173,6 +206,7 @@ impl HapticLoop {
         }
         let Sample {
             measured_cp: measured,
+            measured_cv,
             position,
             velocity,
         } = sample_device(self.device.as_mut(), &mut self.safety, actual);
@@ -189,29 +223,38 @@ impl HapticLoop {
             self.link.send_command(out.command);
         }
         self.exchange.ticks.push(TickRecord {
-            index: tick.index,
+            device_m: [measured, measured_cv],
             position_m: position,
+            velocity_m_per_s: velocity,
             force_n: out.force_n,
+            force_device_n: force,
             in_contact: out.in_contact,
             rendering: out.rendering,
+            proxy_m: self.node.proxy_m(),
+            safety_bits: self.safety.active_bits(),
+            device_faults: self.device.fault_count(),
+            ..record
         });
     }
 
-    /// Hands this session's newest network values to the node.
-    fn take_messages(&mut self, now: i64, state: &mut State) {
+    /// Hands this session's newest network values to the node (and notes them in the record).
+    fn take_messages(&mut self, now: i64, state: &mut State, record: &mut TickRecord) {
         let session = self.session;
         if let Some(p) = self.link.parameters().filter(|r| r.session == session) {
             state.last_params_ns = Some(p.received_ns);
             state.parameters = Some(p.message);
+            record.parameters = Some((p.message, p.received_ns));
             self.node.on_message(&Message::Parameters(p.message), now);
         }
         if let Some(c) = self.link.contact().filter(|r| r.session == session) {
             if c.message.frame.is_some() {
                 state.frame = c.message.frame;
             }
+            record.contact = Some((c.message, c.received_ns));
             self.node.on_message(&Message::Contact(c.message), now);
         }
         if let Some(s) = self.link.state_sync().filter(|r| r.session == session) {
+            record.state_sync = Some((s.message, s.received_ns));
             self.node.on_message(&Message::StateSync(s.message), now);
         }
     }
@@ -222,6 +265,8 @@ impl HapticLoop {
 pub(crate) struct Sample {
     /// The device's measured position [m] (device coordinates), for the force path.
     pub(crate) measured_cp: Vec3,
+    /// The device's measured velocity [m/s] (device coordinates).
+    pub(crate) measured_cv: Vec3,
     /// The commanded position [m]: clutch and scale applied.
     pub(crate) position: Vec3,
     /// The commanded velocity [m/s]: scaled, zero while clutched.
@@ -238,10 +283,12 @@ pub(crate) fn sample_device(
 ) -> Sample {
     let _ = device.update(now);
     let measured_cp = device.measured_cp();
+    let measured_cv = device.measured_cv();
     let position = safety.command_position(measured_cp, device.clutch());
-    let velocity = safety.command_velocity(device.measured_cv());
+    let velocity = safety.command_velocity(measured_cv);
     Sample {
         measured_cp,
+        measured_cv,
         position,
         velocity,
     }

@@ -30,7 +30,7 @@ fn main() -> ExitCode {
             .and_then(|()| operator::cli::run(args, shutdown.clone(), &mut out)),
     };
     result.unwrap_or_else(|e| {
-        eprintln!("operator: {e:#}");
+        eprintln!("operator: {}", rt::exit::message(e.as_ref()));
         ExitCode::FAILURE
     })
 }

@@ -139,11 +139,19 @@ async fn a_second_operator_gets_busy_and_the_first_one_stays_in_control() {
     );
     let alice = OperatorClient::start(tr.addr, &certs.operator, &certs.telerobot, "alice");
     eventually(WAIT, || alice.link.status().connected().then_some(())).await;
-    let second = OperatorClient::start(tr.addr, &bob, &certs.telerobot, "bob");
-    let error = second.task.await.unwrap().unwrap_err();
+    // `--no-wait`: the refusal ends the client.
+    let second = OperatorClient::start_with(tr.addr, &bob, &certs.telerobot, "bob", |c| {
+        c.wait_when_busy = false;
+    });
+    let error = second.task.await.unwrap().unwrap_err().to_string();
+    // The operator in control is named by its certificate (the name is self-chosen).
+    let fingerprint = transport::identity::fingerprint(&certs.operator.cert);
     assert_eq!(
-        error.to_string(),
-        "the telerobot refused the session: telerobot is busy: alice is in control"
+        error,
+        format!(
+            "the telerobot refused the session: telerobot is busy: 'alice' (certificate \
+             {fingerprint}) is in control"
+        )
     );
     assert!(alice.link.status().connected());
     alice.link.send_command(command(1.0));

@@ -355,16 +355,14 @@ fn missing_library_names_it_the_search_path_and_the_variable() {
 fn report_of(device: Box<dyn HapticDevice>) -> operator::report::NetworkedReport {
     use operator::report::{self, RunFacts};
     let facts = RunFacts {
-        experiment: "networked".into(),
-        scene: "exp1".into(),
-        left_out: Vec::new(),
-        device: "omega".into(),
-        seed: 0,
-        set_delay_ms: None,
+        run: metrics::networked::NetworkedRun {
+            experiment: "networked".into(),
+            scene: "exp1".into(),
+            device: "omega".into(),
+            period_ns: 1_000_000,
+            ..Default::default()
+        },
         truth: None,
-        start_ns: 0,
-        period_ns: 1_000_000,
-        final_offset_ns: None,
         link: Default::default(),
         measurements_overwritten: 0,
         timing: Default::default(),

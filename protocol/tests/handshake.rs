@@ -138,3 +138,49 @@ fn proxy_radii_out_of_order_or_not_positive_are_rejected() {
     w.scene.proxy_radii_m = [0.001, 0.003, 0.012];
     assert_eq!(check_welcome(&w), Ok(()));
 }
+
+/// The `decode` fuzz target's handshake checks, on arbitrary and on corrupted first messages:
+/// the handshake never panics and agrees with the decoders (what it accepts is the decoded
+/// message, of this version, and passes the checks).
+mod agreement {
+    use super::*;
+    use proptest::prelude::*;
+    use proptest::sample::Index;
+
+    fn agrees(bytes: &[u8]) -> Result<(), TestCaseError> {
+        if let Ok(h) = accept_hello(bytes) {
+            prop_assert_eq!(h.version, PROTOCOL_VERSION);
+            prop_assert_eq!(o2t::decode(bytes), Ok(o2t::Message::Hello(h)));
+        }
+        if let Ok(w) = accept_welcome(bytes) {
+            prop_assert_eq!(check_welcome(&w), Ok(()));
+            prop_assert_eq!(t2o::decode(bytes), Ok(t2o::Message::Welcome(w)));
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_first_messages(body in proptest::collection::vec(any::<u8>(), 0..256)) {
+            let mut prefixed = PROTOCOL_VERSION.to_le_bytes().to_vec();
+            prefixed.extend_from_slice(&body);
+            agrees(&body)?;
+            agrees(&prefixed)?;
+        }
+
+        #[test]
+        fn corrupted_hello_and_welcome(
+            edits in proptest::collection::vec((any::<Index>(), any::<u8>()), 1..5),
+        ) {
+            let hello = o2t::encode(&o2t::Message::Hello(hello(PROTOCOL_VERSION)));
+            let welcome = t2o::encode(&t2o::Message::Welcome(welcome(PROTOCOL_VERSION)));
+            for mut bytes in [hello, welcome] {
+                for (at, value) in &edits {
+                    let i = at.index(bytes.len());
+                    bytes[i] = *value;
+                }
+                agrees(&bytes)?;
+            }
+        }
+    }
+}

@@ -18,11 +18,18 @@
 //!   helper threads (a blocking wait) and the network tasks (an async wait), fired by the caller or
 //!   by Ctrl-C / SIGTERM ([`Shutdown::on_signals`]).
 //!
+//! - [`out`]: a run's output directory, checked before the run ([`OutDir::prepare`]), its
+//!   files written atomically, its streams flushed as the run goes;
+//! - [`exit::message`]: the one line a binary prints when it stops on an error (each cause once).
+//!
 //! What it is not: no knowledge of nodes, devices, links or the network. The netem shim, the
 //! QUIC transport and both daemons take their time from here.
 
 pub mod clock;
+pub mod exit;
 mod histogram;
+pub mod out;
+pub mod outage;
 mod periodic;
 mod shutdown;
 pub mod thread;
@@ -30,6 +37,8 @@ mod timing;
 
 pub use clock::{monotonic_ns, sleep_until_ns};
 pub use histogram::{Histogram, Summary};
+pub use out::{OutDir, OutError};
+pub use outage::Outages;
 pub use periodic::{MAX_SPIN_NS, Periodic, PeriodicConfig, PeriodicError, Tick};
 pub use shutdown::Shutdown;
 pub use thread::spawn;

@@ -83,6 +83,7 @@ pub struct Periodic {
     next_index: u64,
     current_start_ns: Option<i64>,
     timing: Arc<LoopTiming>,
+    idle: bool,
 }
 
 impl Periodic {
@@ -96,6 +97,7 @@ impl Periodic {
             next_index: 0,
             current_start_ns: None,
             timing: Arc::new(LoopTiming::new(config.period_ns, config.spin_ns)),
+            idle: false,
         })
     }
 
@@ -132,9 +134,16 @@ impl Periodic {
             self.next_index = index;
             deadline = self.deadline(index);
         }
-        let started = sleep_until_ns(deadline, self.config.spin_ns);
-        self.timing.record_start(started, started - deadline);
-        self.current_start_ns = Some(started);
+        let started = if self.idle {
+            let started = sleep_until_ns(deadline, 0);
+            self.timing.record_idle_start(started);
+            started
+        } else {
+            let started = sleep_until_ns(deadline, self.config.spin_ns);
+            self.timing.record_start(started, started - deadline);
+            started
+        };
+        self.current_start_ns = Some(started).filter(|_| !self.idle);
         let tick = Tick {
             index: self.next_index,
             deadline_ns: deadline,
@@ -142,6 +151,16 @@ impl Periodic {
         };
         self.next_index += 1;
         tick
+    }
+
+    /// Idle or not, from the next tick on. An idle tick keeps the schedule but does not spin
+    /// before its deadline (the spin window is most of an idle loop's CPU: 10 % of a core at
+    /// 100 µs per 1 ms), and its timing is counted apart ([`TimingReport::idle_ticks`]): while
+    /// nobody is served its lateness is nobody's. The next tick after idling spins again.
+    ///
+    /// [`TimingReport::idle_ticks`]: crate::TimingReport::idle_ticks
+    pub fn set_idle(&mut self, idle: bool) {
+        self.idle = idle;
     }
 
     fn deadline(&self, index: u64) -> i64 {
@@ -192,6 +211,37 @@ mod tests {
         let t = p.wait();
         assert!(t.index >= 30, "{t:?}");
         assert!(p.timing().report().skipped_ticks >= 25);
+    }
+
+    #[test]
+    fn idle_ticks_keep_the_schedule_and_are_counted_apart() {
+        let config = PeriodicConfig {
+            period_ns: 1_000_000,
+            spin_ns: 100_000,
+            max_catch_up: 50,
+        };
+        let start = monotonic_ns() + 1_000_000;
+        let mut p = Periodic::new(config, start).unwrap();
+        p.set_idle(true);
+        for k in 0..10u64 {
+            let t = p.wait();
+            assert_eq!(t.deadline_ns, start + k as i64 * 1_000_000);
+            assert!(t.started_ns >= t.deadline_ns);
+        }
+        p.set_idle(false);
+        for k in 10..15u64 {
+            assert_eq!(p.wait().index, k);
+        }
+        let r = p.timing().report();
+        assert_eq!((r.ticks, r.idle_ticks), (15, 10));
+        // Only the served ticks are timed: 5 lateness samples, 5 periods (the first from the
+        // last idle start).
+        assert_eq!(r.lateness.count, 5);
+        assert_eq!(r.period.count, 5);
+        assert_eq!(
+            r.work.count, 4,
+            "the work of a tick served after an idle one"
+        );
     }
 
     #[test]

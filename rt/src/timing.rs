@@ -27,6 +27,7 @@ pub struct LoopTiming {
     ticks: AtomicU64,
     overruns: AtomicU64,
     skipped: AtomicU64,
+    idle: AtomicU64,
     last_start_ns: AtomicI64,
 }
 
@@ -49,6 +50,10 @@ pub struct TimingReport {
     pub overruns: u64,
     /// Ticks given up after stalls longer than the catch-up budget.
     pub skipped_ticks: u64,
+    /// Ticks run idle (no spin, left out of period, lateness and overruns): the telerobot's
+    /// loop while no operator is connected.
+    #[serde(default)]
+    pub idle_ticks: u64,
 }
 
 impl LoopTiming {
@@ -63,6 +68,7 @@ impl LoopTiming {
             ticks: AtomicU64::new(0),
             overruns: AtomicU64::new(0),
             skipped: AtomicU64::new(0),
+            idle: AtomicU64::new(0),
             last_start_ns: AtomicI64::new(i64::MIN),
         }
     }
@@ -78,6 +84,14 @@ impl LoopTiming {
         if lateness_ns > self.nominal_period_ns / 2 {
             self.overruns.fetch_add(1, Relaxed);
         }
+    }
+
+    /// An idle tick started at `started_ns` (counted, not timed: nobody waits on it).
+    /// Lock-free.
+    pub fn record_idle_start(&self, started_ns: i64) {
+        self.ticks.fetch_add(1, Relaxed);
+        self.idle.fetch_add(1, Relaxed);
+        self.last_start_ns.store(started_ns, Relaxed);
     }
 
     /// A tick's work took `work_ns`. Lock-free.
@@ -101,6 +115,7 @@ impl LoopTiming {
             work: self.work.summary(),
             overruns: self.overruns.load(Relaxed),
             skipped_ticks: self.skipped.load(Relaxed),
+            idle_ticks: self.idle.load(Relaxed),
         }
     }
 }

@@ -119,6 +119,19 @@ impl Tangential {
     }
 }
 
+/// Integration sub-steps per tick at a loop rate of `control_hz`: the default 10, or more below
+/// 1 kHz, so that the integration runs at 10 kHz or faster at every rate a scene allows
+/// (`SimConfig::substeps`; a 500 Hz scene used to pass validation and then fail here).
+fn substeps(control_hz: f64) -> u32 {
+    let needed = (1e4 / control_hz).ceil();
+    let default = SimConfig::THESIS_EXP1.substeps;
+    if needed > f64::from(default) && needed <= f64::from(u32::MAX) {
+        needed as u32
+    } else {
+        default
+    }
+}
+
 /// The simulated world.
 pub struct World {
     origin: [f64; 3],
@@ -161,8 +174,8 @@ impl World {
                 static_friction_n: env.static_friction_n,
                 stick_band_m_per_s: env.stick_velocity_m_per_s,
                 sample_period_s: 1.0 / scene.rates.control_hz,
+                substeps: substeps(scene.rates.control_hz),
                 noise,
-                ..SimConfig::THESIS_EXP1
             };
             Ok(Tangential::Sliding(Box::new(SlidingObjectSim::new(
                 config,

@@ -1,5 +1,6 @@
-//! The camera thread: the scene's simulated depth camera at its frame rate, off the real-time
-//! thread (`DESIGN.md` §2: nothing in the 1 kHz loop allocates).
+//! The camera thread: the scene's cloud source — the simulated depth camera at its frame rate,
+//! a PLY/PCD file ([`file`]) or a camera on a ROS 2 graph (`ros2::camera`) — off the real-time thread (`DESIGN.md` §2: nothing in the 1 kHz
+//! loop allocates).
 //!
 //! ```text
 //!  1 kHz loop ──CameraPose (latest value)──▶ camera thread: Camera::frame → CloudIndex::build
@@ -7,7 +8,14 @@
 //! ```
 //!
 //! The thread keeps the last few indices alive itself, so the loop never drops the last reference
-//! to one (freeing a kd-tree there would be a deallocation on the real-time thread).
+//! to one (freeing a kd-tree there would be a deallocation on the real-time thread). With
+//! `--record` or `--live` it hands each frame to the recorder too.
+//!
+//! Every frame is held to the real-time budget before it is indexed ([`FrameBudget`]): a frame
+//! the proxy could not step on at the loop rate, or too large to index at the camera rate, is
+//! voxel-downsampled, or refused when only a voxel the proxy slips through would fit (counted;
+//! logged once). The simulated camera and cloud files are fitted at load already; this guards
+//! a ROS 2 camera's frames, whose density is known only when they come.
 
 use std::collections::VecDeque;
 use std::io;
@@ -16,7 +24,10 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use mmt::contact::CloudIndex;
+use cloud_io::voxel::VoxelGrid;
+use mmt::cloud::{CloudError, CloudFrame};
+use mmt::contact::budget::CloudBudget;
+use mmt::contact::{CloudIndex, ProxyConfig};
 use node::cloud_to_wire;
 use rt::Shutdown;
 use sim::camera::Camera;
@@ -24,6 +35,14 @@ use sim::world::World;
 use transport::Mailbox;
 
 use crate::net::TelerobotLink;
+use record::schema::CloudRec;
+use record::{Message, RecordSink, Side};
+
+pub mod file;
+mod start;
+
+pub use file::{CloudFileError, FileCloud, FileCloudInfo};
+pub(crate) use start::start;
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);
@@ -50,6 +69,8 @@ pub struct CameraFeed {
     pub index: Mailbox<(u64, Arc<CloudIndex>)>,
     frames: AtomicU64,
     rejected: AtomicU64,
+    downsampled: AtomicU64,
+    over_budget: AtomicU64,
 }
 
 impl Default for CameraFeed {
@@ -59,6 +80,8 @@ impl Default for CameraFeed {
             index: Mailbox::latest(),
             frames: AtomicU64::new(0),
             rejected: AtomicU64::new(0),
+            downsampled: AtomicU64::new(0),
+            over_budget: AtomicU64::new(0),
         }
     }
 }
@@ -68,28 +91,116 @@ impl CameraFeed {
     pub fn counts(&self) -> (u64, u64) {
         (self.frames.load(Relaxed), self.rejected.load(Relaxed))
     }
+
+    /// Frames over the real-time budget: downsampled to fit, and refused (also counted in
+    /// [`CameraFeed::counts`]' refused).
+    pub fn budget_counts(&self) -> (u64, u64) {
+        (
+            self.downsampled.load(Relaxed),
+            self.over_budget.load(Relaxed),
+        )
+    }
 }
 
-/// Starts the camera thread: `camera` (the scene's, seeded) and `geometry`, a copy of the scene's
-/// world the camera reads the surface frame from (never stepped). It stops when `shutdown` is
-/// triggered.
+/// The real-time budget a frame is held to before it is indexed: the scene's proxy (radii, loop
+/// rate) and the camera's frame rate (`mmt::contact::budget`).
+pub struct FrameBudget {
+    proxy: ProxyConfig,
+    budget: CloudBudget,
+    frame_rate_hz: Option<f64>,
+    grid: VoxelGrid,
+    warned: bool,
+}
+
+impl FrameBudget {
+    /// The budget of `scene`'s frames.
+    pub fn of_scene(scene: &sim::scene::Scene) -> FrameBudget {
+        FrameBudget {
+            proxy: scene.proxy.config(scene.rates.control_hz),
+            budget: CloudBudget::default(),
+            frame_rate_hz: Some(scene.cloud.rate_hz),
+            grid: VoxelGrid::new(),
+            warned: false,
+        }
+    }
+
+    /// The frame, downsampled if it is over the budget; `None` (counted in `feed`) if it cannot
+    /// be brought in. The first frame that is not as it came is logged.
+    fn hold(&mut self, frame: CloudFrame, feed: &CameraFeed) -> Option<CloudFrame> {
+        let (timestamp_ns, pose) = (frame.timestamp_ns(), *frame.sensor_pose());
+        let mut points = frame.into_points();
+        let fit = cloud_io::budget::fit_to_budget(
+            &mut points,
+            &self.proxy,
+            &self.budget,
+            self.frame_rate_hz,
+            &mut self.grid,
+        );
+        match fit {
+            Ok(None) => {}
+            Ok(Some(fit)) => {
+                feed.downsampled.fetch_add(1, Relaxed);
+                if !std::mem::replace(&mut self.warned, true) {
+                    tracing::warn!("camera frame: {fit} (logged once; counted in the report)");
+                }
+            }
+            Err(e) => {
+                feed.over_budget.fetch_add(1, Relaxed);
+                if !std::mem::replace(&mut self.warned, true) {
+                    tracing::warn!(
+                        "camera frame refused: {e} (logged once; counted in the report)"
+                    );
+                }
+                return None;
+            }
+        }
+        CloudFrame::new(points, timestamp_ns, pose).ok()
+    }
+}
+
+/// Where the camera thread's frames come from.
+pub enum Source {
+    /// The scene's simulated camera (seeded) and a copy of the scene's world it reads the
+    /// surface frame from (never stepped).
+    Simulated(Box<Camera>, Box<World>),
+    /// A PLY or PCD file, loaded at start.
+    File(Box<FileCloud>),
+    /// A camera's PointCloud2 topic on a ROS 2 graph.
+    Ros2(Box<ros2::CameraSource>),
+}
+
+impl Source {
+    fn frame(&mut self, p: &CameraPose) -> Result<Option<mmt::cloud::CloudFrame>, CloudError> {
+        match self {
+            Source::Simulated(camera, geometry) => {
+                camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m)
+            }
+            Source::File(file) => file.frame(p.now_ns, &p.object_offset_m),
+            Source::Ros2(camera) => Ok(camera.poll(rt::monotonic_ns())),
+        }
+    }
+}
+
+/// Starts the camera thread on `source`. It stops when `shutdown` is triggered.
 pub fn spawn(
-    camera: Camera,
-    geometry: World,
+    source: Source,
+    budget: FrameBudget,
     feed: Arc<CameraFeed>,
     link: TelerobotLink,
+    record: Option<RecordSink>,
     shutdown: Shutdown,
 ) -> io::Result<JoinHandle<()>> {
     std::thread::Builder::new()
         .name("camera".to_owned())
-        .spawn(move || run(camera, &geometry, &feed, &link, &shutdown))
+        .spawn(move || run(source, budget, &feed, &link, record.as_ref(), &shutdown))
 }
 
 fn run(
-    mut camera: Camera,
-    geometry: &World,
+    mut source: Source,
+    mut budget: FrameBudget,
     feed: &CameraFeed,
     link: &TelerobotLink,
+    record: Option<&RecordSink>,
     shutdown: &Shutdown,
 ) {
     let mut kept: VecDeque<Arc<CloudIndex>> = VecDeque::with_capacity(KEEP + 1);
@@ -99,9 +210,19 @@ fn run(
         if let Some(p) = feed.pose.take() {
             pose = Some(p);
         }
-        let Some(p) = pose else { continue };
-        match camera.frame(p.now_ns, geometry, p.tool_m, &p.object_offset_m) {
-            Ok(Some(frame)) => match CloudIndex::build(&frame) {
+        let Some(p) = pose.or_else(|| {
+            // A real camera does not wait for the robot's first state.
+            matches!(source, Source::Ros2(_)).then(CameraPose::default)
+        }) else {
+            continue;
+        };
+        let frame = match source.frame(&p) {
+            Ok(Some(frame)) => budget.hold(frame, feed).ok_or(()),
+            Ok(None) => continue,
+            Err(_) => Err(()),
+        };
+        match frame {
+            Ok(frame) => match CloudIndex::build(&frame) {
                 Ok(index) => {
                     frame_id += 1;
                     let index = Arc::new(index);
@@ -110,17 +231,63 @@ fn run(
                         kept.pop_front();
                     }
                     feed.index.push((frame_id, index));
-                    link.send_cloud(Box::new(cloud_to_wire(frame_id, frame)));
+                    let wire = cloud_to_wire(frame_id, frame);
+                    if let Some(sink) = record.filter(|s| s.wants_clouds()) {
+                        let cloud = CloudRec {
+                            frame_id,
+                            timestamp_ns: wire.timestamp_ns,
+                            points: Arc::new(wire.points.clone()),
+                        };
+                        sink.send_one(p.now_ns, Message::Cloud(Side::Telerobot, cloud));
+                    }
+                    link.send_cloud(Box::new(wire));
                     feed.frames.fetch_add(1, Relaxed);
                 }
                 Err(_) => {
                     feed.rejected.fetch_add(1, Relaxed);
                 }
             },
-            Ok(None) => {}
-            Err(_) => {
+            Err(()) => {
                 feed.rejected.fetch_add(1, Relaxed);
             }
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use mmt::cloud::Pose;
+
+    /// Issue 11, finding 5 on the camera thread: a ROS 2 camera's million-point frame (which
+    /// only its own `max_points` held) is downsampled before it is indexed, and counted.
+    #[test]
+    fn a_frame_over_the_budget_is_downsampled_before_it_is_indexed() {
+        let scene = sim::scene::Scene::exp1();
+        let mut budget = FrameBudget::of_scene(&scene);
+        let feed = CameraFeed::default();
+        let small: Vec<[f32; 3]> = (0..56 * 56)
+            .map(|k| [(k % 56) as f32 * 0.0045, (k / 56) as f32 * 0.0045, 0.0])
+            .collect();
+        let frame = CloudFrame::new(small.clone(), 7, Pose::IDENTITY).unwrap();
+        let kept = budget.hold(frame, &feed).unwrap();
+        assert_eq!((kept.points(), kept.timestamp_ns()), (&small[..], 7));
+        assert_eq!(feed.budget_counts(), (0, 0));
+        let dense: Vec<[f32; 3]> = (0..1_001 * 1_001)
+            .map(|k| {
+                [
+                    (k % 1_001) as f32 * 0.00025,
+                    (k / 1_001) as f32 * 0.00025,
+                    0.0,
+                ]
+            })
+            .collect();
+        let frame = CloudFrame::new(dense, 8, Pose::IDENTITY).unwrap();
+        let kept = budget.hold(frame, &feed).unwrap();
+        assert_eq!(feed.budget_counts(), (1, 0));
+        assert_eq!(kept.timestamp_ns(), 8);
+        let limit = CloudBudget::default().max_points(Some(scene.cloud.rate_hz));
+        assert!(kept.points().len() <= limit, "{}", kept.points().len());
     }
 }

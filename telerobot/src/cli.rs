@@ -2,9 +2,10 @@
 //! into config structs, and one function per subcommand.
 //!
 //! - `telerobot gen-cert --out DIR` — writes `DIR/telerobot.crt` and `DIR/telerobot.key`.
-//! - `telerobot run [--scene FILE] --listen ADDR --identity DIR --trust OPERATOR_CRT` — validates
-//!   the scene, the identity, the trusted certificates and the loop settings into a
-//!   [`RunConfig`] and runs the daemon ([`crate::run`]) until Ctrl-C.
+//! - `telerobot run [--scene FILE] --listen ADDR --identity DIR --trust OPERATOR_CRT
+//!   [--record FILE.mcap] [--live [ADDR]]` — validates the scene, the identity, the trusted
+//!   certificates and the loop settings into a [`RunConfig`] and runs the daemon
+//!   ([`crate::run`]) until Ctrl-C.
 
 use std::io::Write;
 use std::net::SocketAddr;
@@ -33,6 +34,7 @@ pub struct Cli {
 
 /// Subcommands.
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once at start; boxing buys nothing
 pub enum Command {
     /// Make the telerobot's certificate and key (DIR/telerobot.crt, DIR/telerobot.key).
     GenCert(GenCertArgs),
@@ -52,8 +54,10 @@ pub struct GenCertArgs {
     pub names: Vec<String>,
 }
 
-/// `telerobot run` options.
+/// `telerobot run` options. Negative numbers are values (`--spin-us -1` is refused by the range
+/// check, as `--spin-us=-1` is, not taken for a flag).
 #[derive(Clone, Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct RunArgs {
     /// UDP address to listen on, IP:PORT (e.g. 0.0.0.0:4433).
     #[arg(long, value_name = "ADDR", value_parser = address::parse_listen_addr)]
@@ -80,6 +84,12 @@ pub struct RunArgs {
     /// Run the loop thread under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
     #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
     pub realtime_priority: Option<u8>,
+    /// Recording and live view.
+    #[command(flatten)]
+    pub record: record::cli::RecordArgs,
+    /// The robot and its command limits.
+    #[command(flatten)]
+    pub robot: crate::robot::RobotArgs,
 }
 
 /// Why the command line could not be turned into a [`RunConfig`].
@@ -92,12 +102,14 @@ pub enum ConfigError {
     #[error("--expected-delay-ms: {0}")]
     Tuning(#[from] TuningError),
     /// The scene file could not be read.
-    #[error("cannot read scene file {file}: {source}")]
+    // The OS's reason is in the message and not a `source`: the binaries print error chains,
+    // and it was printed twice ("Is a directory (os error 21): Is a directory (os error 21)").
+    #[error("cannot read scene file {file}: {error}")]
     SceneFile {
         /// The file.
         file: String,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The scene is invalid (the message names the field, the value and the allowed range).
     #[error(transparent)]
@@ -105,6 +117,9 @@ pub enum ConfigError {
     /// `--spin-us` is out of range.
     #[error("--spin-us {0}: expected 0 to 200 µs")]
     Spin(f64),
+    /// A robot option.
+    #[error(transparent)]
+    Robot(#[from] crate::robot::RobotArgsError),
 }
 
 impl RunConfig {
@@ -114,11 +129,17 @@ impl RunConfig {
             Some(path) => {
                 let file = path.display().to_string();
                 let text =
-                    std::fs::read_to_string(path).map_err(|source| ConfigError::SceneFile {
+                    std::fs::read_to_string(path).map_err(|error| ConfigError::SceneFile {
                         file: file.clone(),
-                        source,
+                        error,
                     })?;
-                Scene::from_toml(&text, &file)?
+                let mut scene = Scene::from_toml(&text, &file)?;
+                // A cloud file is named relative to the scene file.
+                if let Some(cloud) = scene.cloud.path.take() {
+                    let resolved = crate::camera::file::resolve(&cloud, Some(path));
+                    scene.cloud.path = Some(resolved.display().to_string());
+                }
+                scene
             }
             None => Scene::exp1(),
         };
@@ -131,7 +152,11 @@ impl RunConfig {
             .iter()
             .map(|path| identity::read_cert(path).map(|cert| (path.clone(), cert)))
             .collect::<Result<_, _>>()?;
+        let robot = args.robot.robot_config()?;
+        let limits = args.robot.limits(&scene)?;
         Ok(RunConfig {
+            robot,
+            limits,
             listen: args.listen,
             identity,
             trusted_operators,
@@ -144,6 +169,7 @@ impl RunConfig {
                 ..PeriodicConfig::default()
             },
             realtime_priority: args.realtime_priority,
+            record: None,
         })
     }
 }
@@ -157,9 +183,54 @@ pub fn gen_cert(args: &GenCertArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 }
 
 /// `telerobot run`: validates the configuration, then runs the daemon until `shutdown` (Ctrl-C
-/// or SIGTERM in the binary).
+/// or SIGTERM in the binary). With `--record`, the file is closed on every way out (the
+/// recorder is finished, or dropped on an error).
 pub fn run(args: &RunArgs, shutdown: Shutdown) -> anyhow::Result<()> {
-    let config = RunConfig::from_args(args)?;
+    let mut config = RunConfig::from_args(args)?;
+    let recorder = args
+        .record
+        .start(record::Kind::Telerobot, rt::monotonic_ns())?;
+    if let Some(addr) = recorder.as_ref().and_then(record::Recorder::live_addr) {
+        tracing::info!("live view: open ws://{addr} in Foxglove or Lichtblick");
+    }
+    config.record = recorder.as_ref().map(record::Recorder::sink);
     crate::run(config, shutdown)?;
+    if let Some(recorder) = recorder {
+        let report = recorder.finish()?;
+        tracing::info!("{}", record::cli::summary(&report));
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    /// Issue 11: `--spin-us -1` gave clap's "unexpected argument '-1'" while `--spin-us=-1`
+    /// gave the range error; both forms now give the range error.
+    #[test]
+    fn a_negative_number_is_a_value_in_both_forms() {
+        let parse = |spin: &[&str]| {
+            let mut argv = vec![
+                "telerobot",
+                "run",
+                "--listen",
+                "127.0.0.1:0",
+                "--identity",
+                "/nonexistent",
+                "--trust",
+                "/nonexistent.crt",
+            ];
+            argv.extend_from_slice(spin);
+            let Command::Run(args) = Cli::try_parse_from(argv).unwrap().command else {
+                panic!("not run")
+            };
+            RunConfig::from_args(&args).unwrap_err().to_string()
+        };
+        let spaced = parse(&["--spin-us", "-1"]);
+        assert_eq!(spaced, parse(&["--spin-us=-1"]));
+        assert_eq!(spaced, "--spin-us -1: expected 0 to 200 µs");
+    }
 }

@@ -6,19 +6,29 @@
 //!    a command of a newer session swaps in a fresh node (new operator, new clock, new model);
 //! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread);
 //! 3. the node says where the robot goes (the command whose turn it is, or hold still when the
-//!    newest command is older than 50 ms), the bridge moves and measures;
-//! 4. the node steps with the measurement; its messages go to the network task's outbox while an
-//!    operator is connected;
-//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread.
+//!    newest command is older than 50 ms); the motion guard bounds it (`node::guard`: nothing
+//!    before the robot's first state, hold on a state older than 50 ms, workspace box, step,
+//!    speed; a reading not finite is a fault, the bridge recovers), whatever the bridge; the
+//!    bridge moves and measures;
+//! 4. the node steps with a new measurement, at the measurement's own time (a simulator's is
+//!    the tick; a ROS 2 robot's its header stamp; a tick that brought none, or a stale state,
+//!    steps nothing); its messages go to the network task's outbox while an operator is
+//!    connected;
+//! 5. every 10 ticks a [`LoopSnapshot`] goes to the housekeeping thread; with `--record` or
+//!    `--live`, every tick a [`TickRecord`] too (plain values: the recording is written there).
 //!
-//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots and datagrams move
-//! through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old ones dropped, by
-//! the housekeeping thread ([`Spares`]).
+//! Nothing here allocates, frees, locks or logs: commands, indices, snapshots, tick records and
+//! datagrams move through the lock-free [`transport::Mailbox`]es; fresh nodes are built, and old
+//! ones dropped, by the housekeeping thread ([`Spares`]).
 
 use std::sync::Arc;
 
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
-use node::{RobotBridge, TelerobotSettings};
+use node::{BridgeSample, GuardStats, Guarded, Reading, RobotBridge, Target, TelerobotSettings};
+use protocol::telerobot_to_operator::{
+    Contact, ContactState, Datagram, Measurement, Parameters, StateSync,
+};
+use record::schema::EstimatorSnapshot;
 use rt::{Periodic, Shutdown, Tick};
 use transport::Mailbox;
 
@@ -47,6 +57,40 @@ pub struct LoopSnapshot {
     pub stable: bool,
     /// Nodes built on the loop thread because no spare was ready (should stay 0).
     pub inline_node_builds: u64,
+    /// The motion guard's counters, since the daemon started (every session).
+    pub guard: GuardStats,
+    /// Ticks whose bridge sample was new (the node stepped).
+    pub fresh_samples: u64,
+}
+
+/// Tick records the housekeeping thread may lag behind by: 8 s at 1 kHz.
+pub const TICK_QUEUE: usize = 8192;
+
+/// What one tick did, for the recording: plain values (pushing one allocates nothing).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickRecord {
+    /// Tick number.
+    pub index: u64,
+    /// The tick's nominal time [ns].
+    pub now_ns: i64,
+    /// The session whose commands run.
+    pub session: u64,
+    /// Where the robot was sent.
+    pub target: Target,
+    /// What the bridge gave.
+    pub sample: BridgeSample,
+    /// Capture time of the camera frame installed this tick [ns].
+    pub cloud_captured_ns: Option<i64>,
+    /// The node's datagrams of the tick.
+    pub contact: Option<Contact>,
+    /// The measurement datagram.
+    pub measurement: Option<Measurement>,
+    /// The parameters datagram, when one was sent.
+    pub parameters: Option<Parameters>,
+    /// The state-sync datagram, when one was sent.
+    pub state_sync: Option<StateSync>,
+    /// The estimators, `[normal, tangential]`.
+    pub estimators: [Option<EstimatorSnapshot>; 2],
 }
 
 /// Fresh nodes for new sessions, and old nodes to drop, exchanged with the housekeeping thread.
@@ -70,7 +114,11 @@ impl Default for Spares {
 pub(crate) struct ControlLoop {
     pub(crate) node: Box<TelerobotNode>,
     pub(crate) settings: TelerobotSettings,
-    pub(crate) bridge: Box<dyn RobotBridge>,
+    /// The robot, behind the motion guard (`node::guard`).
+    pub(crate) bridge: Guarded<Box<dyn RobotBridge>>,
+    /// Where the model and contact state are published besides the operator (a ROS 2 robot's
+    /// `/mmt/theta` and `/mmt/in_contact`).
+    pub(crate) outlet: Option<ros2::ModelOutlet>,
     pub(crate) link: TelerobotLink,
     pub(crate) camera: Arc<CameraFeed>,
     pub(crate) spares: Arc<Spares>,
@@ -78,6 +126,8 @@ pub(crate) struct ControlLoop {
     /// Command receipt − command sample time \[ns\] (one host: the uplink's one-way latency), to
     /// the housekeeping thread.
     pub(crate) command_latency: Arc<Mailbox<i64>>,
+    /// Every tick's record, to the housekeeping thread, while the run records.
+    pub(crate) records: Option<Arc<Mailbox<TickRecord>>>,
     pub(crate) shutdown: Shutdown,
 }
 
@@ -92,6 +142,10 @@ impl ControlLoop {
     pub(crate) fn run(mut self, mut periodic: Periodic) -> LoopEnd {
         let mut state = State::default();
         loop {
+            // Idle while no operator is connected: the same ticks (the robot is read and held),
+            // without the spin before each (issue 11: 10 % of a core for nobody). The session's
+            // status flips with the Welcome, before its first command.
+            periodic.set_idle(!self.link.status().connected());
             let tick = periodic.wait();
             if self.shutdown.is_triggered() {
                 break;
@@ -99,7 +153,7 @@ impl ControlLoop {
             self.tick(tick, &mut state);
         }
         LoopEnd {
-            last: state.snapshot(&self.node),
+            last: state.snapshot(&self.node, self.bridge.stats()),
             node: self.node,
         }
     }
@@ -114,6 +168,8 @@ impl ControlLoop {
                 if state.session != 0 {
                     self.fresh_node(state);
                 }
+                // Whatever the last session left: a robot not finite is recovered and reported.
+                self.bridge.begin_session();
                 state.session = c.session;
             }
             let header = c.message.header;
@@ -126,31 +182,87 @@ impl ControlLoop {
                 received_ns: c.received_ns,
             });
         }
+        let mut cloud_captured_ns = None;
         if let Some((frame_id, index)) = self.camera.index.take() {
+            cloud_captured_ns = Some(index.timestamp_ns());
             self.node.set_cloud(index, frame_id);
         }
-        let target = self.node.target(now, self.bridge.tool_m());
-        let sample = self.bridge.step(&target);
+        let wanted = self.bridge.tool_m().map(|tool| self.node.target(now, tool));
+        let sample = self.bridge.step(now, wanted.as_ref());
+        let target = self.bridge.commanded().copied();
         self.camera.pose.push(CameraPose {
             now_ns: now,
             tool_m: sample.tool_m,
             object_offset_m: sample.object_slide_m,
         });
-        let connected = self.link.status().connected();
-        let datagrams = self
-            .node
-            .step(now, target.command_sample_time_ns, &sample.measured);
-        if connected {
-            for d in datagrams {
-                self.link.send(*d);
-            }
+        let command_ns = target.map_or(0, |t| t.command_sample_time_ns);
+        self.use_sample(now, command_ns, &sample, state);
+        while let Some(more) = self.bridge.next_reading() {
+            self.use_sample(now, command_ns, &more, state);
+        }
+        if let Some(records) = &self.records {
+            records.push(tick_record(
+                &self.node,
+                [tick.index, state.session],
+                now,
+                // No target (no robot state yet): recorded as holding where the tool is.
+                target.unwrap_or(Target {
+                    position_m: sample.tool_m,
+                    velocity_m_per_s: [0.0; 3],
+                    command_sample_time_ns: 0,
+                    holding: true,
+                }),
+                sample,
+                cloud_captured_ns,
+            ));
         }
         state.tick = tick.index;
         state.now_ns = now;
-        state.holding = target.holding;
-        state.tool_m = sample.tool_m;
+        state.holding = target.is_none_or(|t| t.holding);
+        if let Some(tool) = self.bridge.tool_m() {
+            state.tool_m = tool;
+        }
         if tick.index.is_multiple_of(SNAPSHOT_EVERY) {
-            self.snapshots.push(state.snapshot(&self.node));
+            self.snapshots
+                .push(state.snapshot(&self.node, self.bridge.stats()));
+        }
+    }
+
+    /// Steps the node with a new sample, at the sample's own time; a repeated one, or none, steps
+    /// nothing.
+    fn use_sample(
+        &mut self,
+        now: i64,
+        command_ns: i64,
+        sample: &node::BridgeSample,
+        state: &mut State,
+    ) {
+        let (sample_ns, command_ns) = match sample.reading {
+            Reading::ThisTick => (now, command_ns),
+            Reading::Stamped {
+                sample_time_ns,
+                command_sample_time_ns,
+            } => (sample_time_ns, command_sample_time_ns),
+            Reading::Repeated | Reading::Nothing => return,
+        };
+        // A stale state is not estimated from (the guard holds the robot meanwhile).
+        if self.bridge.state_is_stale(now) {
+            return;
+        }
+        state.fresh_samples += 1;
+        let connected = self.link.status().connected();
+        let datagrams = self.node.step(sample_ns, command_ns, &sample.measured);
+        for d in datagrams {
+            if let Some(outlet) = self.outlet.as_mut() {
+                match d {
+                    Datagram::Parameters(p) => outlet.parameters(p),
+                    Datagram::Contact(c) => outlet.contact(c.state != ContactState::Free),
+                    _ => {}
+                }
+            }
+            if connected {
+                self.link.send(*d);
+            }
         }
     }
 
@@ -162,7 +274,8 @@ impl ControlLoop {
                 // No spare ready (sessions changing faster than the housekeeping thread builds
                 // them): build one here, once per session change, and count it.
                 state.inline_node_builds += 1;
-                match TelerobotNode::new(self.settings.clone(), self.bridge.tool_m()) {
+                let at = self.bridge.tool_m().unwrap_or(state.tool_m);
+                match TelerobotNode::new(self.settings.clone(), at) {
                     Ok(node) => Box::new(node),
                     Err(_) => return, // the settings built the first node: cannot happen
                 }
@@ -182,10 +295,11 @@ struct State {
     holding: bool,
     tool_m: [f64; 3],
     inline_node_builds: u64,
+    fresh_samples: u64,
 }
 
 impl State {
-    fn snapshot(&self, node: &TelerobotNode) -> LoopSnapshot {
+    fn snapshot(&self, node: &TelerobotNode, guard: GuardStats) -> LoopSnapshot {
         LoopSnapshot {
             tick: self.tick,
             now_ns: self.now_ns,
@@ -195,6 +309,47 @@ impl State {
             node: node.stats(),
             stable: node.is_stable(),
             inline_node_builds: self.inline_node_builds,
+            guard,
+            fresh_samples: self.fresh_samples,
         }
     }
+}
+
+/// This tick's record for the recording: plain values, built on the stack.
+fn tick_record(
+    node: &TelerobotNode,
+    [index, session]: [u64; 2],
+    now_ns: i64,
+    target: Target,
+    sample: BridgeSample,
+    cloud_captured_ns: Option<i64>,
+) -> TickRecord {
+    let mut record = TickRecord {
+        index,
+        now_ns,
+        session,
+        target,
+        sample,
+        cloud_captured_ns,
+        contact: None,
+        measurement: None,
+        parameters: None,
+        state_sync: None,
+        estimators: [None; 2],
+    };
+    for d in node.datagrams() {
+        match *d {
+            Datagram::Contact(c) => record.contact = Some(c),
+            Datagram::Measurement(m) => record.measurement = Some(m),
+            Datagram::Parameters(p) => record.parameters = Some(p),
+            Datagram::StateSync(s) => record.state_sync = Some(s),
+        }
+    }
+    let [normal, tangential] = node.updates();
+    record.estimators = [
+        normal.zip(node.normal_estimator()),
+        tangential.zip(node.tangential_estimator()),
+    ]
+    .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
+    record
 }

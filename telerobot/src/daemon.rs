@@ -9,7 +9,9 @@
 //! - `camera`: the simulated camera and its kd-tree ([`crate::camera`]);
 //! - `housekeeping`: everything the loop must not do — builds a spare node for the next session
 //!   (at the robot's current position), drops retired ones, keeps the latest loop snapshot for
-//!   [`Telerobot::snapshot`], and logs each session's end with its figures.
+//!   [`Telerobot::snapshot`], logs each session's end with its figures, and with `--record` or
+//!   `--live` hands the loop's tick records, the link statistics and the session events to the
+//!   recorder (the camera thread hands it the frames).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -18,28 +20,31 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
-use node::TelerobotSettings;
 use node::telerobot::TelerobotNode;
+use node::{GuardStats, MotionLimits, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
 use rt::monotonic_ns;
 use rt::{Periodic, PeriodicConfig, Shutdown, TimingReport};
 use rustls_pki_types::CertificateDer;
 use serde::Serialize;
-use sim::camera::Camera;
-use sim::scene::{CloudKind, Scene};
-use sim::world::World;
+use sim::scene::Scene;
 use transport::{Identity, LinkReport, LinkTuning, Mailbox};
 
 use crate::camera::{self, CameraFeed};
-use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares};
+use crate::control::{ControlLoop, LoopEnd, LoopSnapshot, Spares, TICK_QUEUE};
 use crate::net::{self, NetConfig, TelerobotLink};
+use crate::recording::{self, Forward};
+use crate::robot::{self, RobotConfig};
+use crate::watch::{CommandGaps, GuardLog};
+use record::RecordSink;
+
+mod network;
+use network::Network;
 
 /// How often the housekeeping thread wakes.
 const HOUSEKEEPING: Duration = Duration::from_millis(20);
 /// Command latencies queued for the housekeeping thread: 8 s at 1 kHz.
 const LATENCY_QUEUE: usize = 8192;
-/// Command latencies kept for the summary: one hour at 1 kHz (29 MB).
-const MAX_LATENCIES: usize = 3_600_000;
 
 /// Everything `telerobot run` needs, validated.
 #[derive(Clone, Debug)]
@@ -62,6 +67,15 @@ pub struct RunConfig {
     pub periodic: PeriodicConfig,
     /// `SCHED_FIFO` priority of the loop thread, if wanted (needs `CAP_SYS_NICE`).
     pub realtime_priority: Option<u8>,
+    /// The recorder (`--record`, `--live`), if the daemon records: every tick, camera frame,
+    /// link statistics and session event goes to it off the loop, and the run's start and end.
+    pub record: Option<RecordSink>,
+    /// Which robot: the simulated world or a ROS 2 robot.
+    pub robot: RobotConfig,
+    /// The motion limits every bridge sits behind (`node::guard`): the scene's `[limits]`
+    /// (`Scene::motion_limits`), the command line's flags over them. The node's settings take
+    /// them too (its playout-time check).
+    pub limits: MotionLimits,
 }
 
 impl RunConfig {
@@ -82,6 +96,11 @@ impl RunConfig {
             self.scene_summary(),
         );
         config.tuning = self.tuning.clone();
+        config.trusted_labels = self
+            .trusted_operators
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect();
         config
     }
 
@@ -104,6 +123,20 @@ pub enum DaemonError {
     /// The simulated world could not be built from the scene.
     #[error("simulated world: {0}")]
     Sim(#[from] sim::SimError),
+    /// The ROS 2 graph or an endpoint on it.
+    #[error(transparent)]
+    Ros2(#[from] ros2::GraphError),
+    /// The scene's cloud file.
+    #[error(transparent)]
+    CloudFile(#[from] camera::CloudFileError),
+    /// `[cloud] source = "ros2"` is not wired into the daemon yet.
+    #[error(
+        "[cloud] source = \"ros2\": not supported by the telerobot daemon yet (use \"file\" or \"plane\")"
+    )]
+    Ros2Cloud,
+    /// The command limits.
+    #[error(transparent)]
+    Limits(#[from] node::guard::LimitsError),
     /// The server could not start.
     #[error(transparent)]
     Net(#[from] net::NetError),
@@ -139,14 +172,27 @@ pub struct Summary {
     pub command_latency: rt::Summary,
     /// Camera frames indexed and sent, and refused.
     pub camera_frames: (u64, u64),
+    /// Cloud frames handed whole to QUIC, superseded by a newer frame before they were (the
+    /// link or the operator could not take them yet: latest wins), and failed.
+    pub clouds: (u64, u64, u64),
+    /// Camera frames over the real-time budget: downsampled to fit, and refused (counted in
+    /// `camera_frames` too).
+    pub camera_over_budget: (u64, u64),
     /// Commands lost to a full command queue.
     pub commands_overwritten: u64,
     /// Datagrams lost to a full outbox.
     pub outbox_overwritten: u64,
     /// Link counters.
     pub link: LinkReport,
+    /// Times without commands (100 ms or more) between the first command and the last, across
+    /// sessions (a reconnect does not restart them; the time between two operators counts).
+    pub outages: transport::Outages,
     /// The last confirmed parameters against the scene's truth (the simulated bridge's).
     pub parameters: Vec<ParameterReport>,
+    /// The ROS 2 bridge's report (`--robot ros2`).
+    pub robot: Option<ros2::BridgeReport>,
+    /// The ROS 2 camera's counters (`[cloud] source = "ros2"`).
+    pub ros2_camera: Option<ros2::CameraReport>,
 }
 
 /// [`LoopSnapshot`] for reports.
@@ -162,6 +208,10 @@ pub struct SnapshotReport {
     pub stable: bool,
     /// Nodes built on the loop thread (no spare ready).
     pub inline_node_builds: u64,
+    /// The motion guard's counters over every session.
+    pub guard: GuardStats,
+    /// New robot samples the node stepped on.
+    pub fresh_samples: u64,
 }
 
 /// A running telerobot daemon.
@@ -170,75 +220,33 @@ pub struct Telerobot {
     stop: Shutdown,
     control: Option<JoinHandle<LoopEnd>>,
     camera: Option<JoinHandle<()>>,
-    housekeeping: Option<JoinHandle<Vec<i64>>>,
+    housekeeping: Option<JoinHandle<(rt::Histogram, transport::Outages)>>,
     shared: Arc<Housekeeping>,
     link: TelerobotLink,
     feed: Arc<CameraFeed>,
     timing: Arc<rt::LoopTiming>,
     scene: Scene,
+    /// The recorder, while the daemon records (the run's end goes to it).
+    record: Option<RecordSink>,
+    robot: Option<ros2::BridgeMonitor>,
+    ros2_camera: Option<Arc<ros2::camera::CameraCounters>>,
 }
 
-/// The network side: its runtime and the QUIC server serving the loop's hand-off.
-struct Network {
-    runtime: tokio::runtime::Runtime,
-    server: tokio::task::JoinHandle<()>,
-    net_stop: Shutdown,
-    addr: SocketAddr,
-    pins: Arc<transport::OperatorPins>,
-}
-
-impl Network {
-    /// Binds the server on its own runtime and starts serving `net_io`.
-    fn start(config: &RunConfig, net_io: net::NetIo) -> Result<Network, DaemonError> {
-        let runtime =
-            transport::network_runtime("telerobot-net").map_err(io("the network runtime"))?;
-        let server = {
-            let _entered = runtime.enter();
-            net::bind(config.net_config())?
-        };
-        let addr = server
-            .local_addr()
-            .map_err(io("the server's local address"))?;
-        let pins = server.pins();
-        let net_stop = Shutdown::new();
-        let server = {
-            let stop = net_stop.clone();
-            runtime.spawn(async move { server.serve(net_io, stop.wait()).await })
-        };
-        for (path, _) in &config.trusted_operators {
-            tracing::info!(file = %path.display(), "trusting operator certificate");
-        }
-        Ok(Network {
-            runtime,
-            server,
-            net_stop,
-            addr,
-            pins,
-        })
-    }
-}
-
-/// The camera thread, when the scene has a cloud: it renders frames of the scene's geometry
-/// into `feed` and sends them on `link`.
-fn start_camera(
+/// The node's settings (with the run's motion limits, checked), a fresh node at the start
+/// position and the loop's schedule at the scene's rate.
+fn node_and_schedule(
     config: &RunConfig,
-    feed: &Arc<CameraFeed>,
-    link: &TelerobotLink,
-    stop: &Shutdown,
-) -> Result<Option<JoinHandle<()>>, DaemonError> {
-    if config.scene.cloud.source == CloudKind::None {
-        return Ok(None);
-    }
-    let geometry = World::new(&config.scene, config.start_m, config.seed)?;
-    let camera = camera::spawn(
-        Camera::new(&config.scene, config.seed),
-        geometry,
-        Arc::clone(feed),
-        link.clone(),
-        stop.clone(),
-    )
-    .map_err(io("the camera thread"))?;
-    Ok(Some(camera))
+) -> Result<(TelerobotSettings, Box<TelerobotNode>, PeriodicConfig), DaemonError> {
+    let mut settings = config.scene.telerobot_settings();
+    settings.limits = config.limits;
+    let node = Box::new(TelerobotNode::new(settings.clone(), config.start_m)?);
+    config.limits.validate()?;
+    let periodic_config = PeriodicConfig {
+        period_ns: settings.period_ns,
+        ..config.periodic
+    };
+    periodic_config.validate()?;
+    Ok((settings, node, periodic_config))
 }
 
 /// What the housekeeping thread shares.
@@ -246,51 +254,81 @@ struct Housekeeping {
     snapshot: Mutex<LoopSnapshot>,
 }
 
+impl Housekeeping {
+    /// Before the loop's first snapshot: the tool where it starts.
+    fn new(tool_m: [f64; 3]) -> Housekeeping {
+        Housekeeping {
+            snapshot: Mutex::new(LoopSnapshot {
+                tool_m,
+                ..LoopSnapshot::default()
+            }),
+        }
+    }
+}
+
+/// The start log: where the daemon listens, what it drives and the command limits.
+fn log_start(config: &RunConfig, addr: SocketAddr, periodic: &PeriodicConfig, robot: &str) {
+    let l = &config.limits;
+    tracing::info!(%addr, scene = %config.scene.name, seed = config.seed,
+        period_us = periodic.period_ns / 1000, spin_us = periodic.spin_ns / 1000,
+        "telerobot running ({robot})");
+    if let Some(fit) = config.scene.cloud_budget() {
+        tracing::warn!(scene = %config.scene.name, "{fit}");
+    }
+    tracing::info!(workspace_min_m = ?l.workspace_min_m, workspace_max_m = ?l.workspace_max_m,
+        max_step_m = l.max_step_m, max_speed_m_per_s = l.max_speed_m_per_s,
+        max_clock_jump_s = l.max_clock_jump_ns as f64 * 1e-9,
+        state_timeout_ms = MotionLimits::STATE_TIMEOUT_NS as f64 * 1e-6,
+        "motion limits (every limit that acts is counted and logged once per episode)");
+}
+
 impl Telerobot {
     /// Binds the server and starts every thread. Returns once the server listens.
     pub fn start(config: RunConfig) -> Result<Telerobot, DaemonError> {
-        let settings = config.scene.telerobot_settings();
         let start = config.start_m;
-        let node = Box::new(TelerobotNode::new(settings.clone(), start)?);
-        let bridge = Box::new(sim::SimBridge::new(&config.scene, start, config.seed)?);
-        let periodic_config = PeriodicConfig {
-            period_ns: settings.period_ns,
-            ..config.periodic
-        };
-        periodic_config.validate()?;
+        let (settings, node, periodic_config) = node_and_schedule(&config)?;
+        let built = robot::build(
+            &config.robot,
+            &config.scene,
+            &settings,
+            start,
+            config.seed,
+            None,
+        )?;
+        let bridge = node::Guarded::new(built.bridge, settings.limits);
         let (link, net_io) =
             net::link(net::DEFAULT_OUTBOX_CAPACITY).map_err(io("the loop's hand-off"))?;
         let network = Network::start(&config, net_io)?;
         let stop = Shutdown::new();
         let feed = Arc::new(CameraFeed::default());
-        let camera = start_camera(&config, &feed, &link, &stop)?;
+        let (camera, camera_counters) =
+            camera::start(&config, built.graph.as_ref(), &feed, &link, &stop)?;
         let spares = Arc::new(Spares::default());
         let snapshots = Arc::new(Mailbox::latest());
         let command_latency = Arc::new(Mailbox::new(LATENCY_QUEUE));
+        let records = recording::tick_mailbox(config.record.as_ref(), TICK_QUEUE);
         // Tick 0 a little ahead, so that the first deadline is not already late.
         let periodic = Periodic::new(periodic_config, monotonic_ns() + 2_000_000)?;
         let timing = periodic.timing();
+        recording::record_start(&config, periodic.start_ns(), settings.period_ns);
         let control = ControlLoop {
             node,
             settings: settings.clone(),
             bridge,
+            outlet: built.outlet,
             link: link.clone(),
             camera: Arc::clone(&feed),
             spares: Arc::clone(&spares),
             snapshots: Arc::clone(&snapshots),
             command_latency: Arc::clone(&command_latency),
+            records: records.clone(),
             shutdown: stop.clone(),
         };
         let control = rt::spawn("telerobot-loop", config.realtime_priority, move || {
             control.run(periodic)
         })
         .map_err(io("the loop thread"))?;
-        let shared = Arc::new(Housekeeping {
-            snapshot: Mutex::new(LoopSnapshot {
-                tool_m: start,
-                ..LoopSnapshot::default()
-            }),
-        });
+        let shared = Arc::new(Housekeeping::new(start));
         let keeper = Keeper {
             settings,
             spares,
@@ -300,12 +338,12 @@ impl Telerobot {
             timing: Arc::clone(&timing),
             spare_at: None,
             command_latency,
-            latencies: Vec::new(),
+            latencies: rt::Histogram::new(),
+            record: config.record.clone().zip(records).map(Forward::new),
+            outages: CommandGaps::default(),
         };
         let housekeeping = keeper.spawn(&stop)?;
-        tracing::info!(addr = %network.addr, scene = %config.scene.name, seed = config.seed,
-            period_us = periodic_config.period_ns / 1000, spin_us = periodic_config.spin_ns / 1000,
-            "telerobot running (simulated bridge)");
+        log_start(&config, network.addr, &periodic_config, &built.description);
         Ok(Telerobot {
             network,
             stop,
@@ -317,6 +355,9 @@ impl Telerobot {
             feed,
             timing,
             scene: config.scene,
+            record: config.record,
+            robot: built.monitor,
+            ros2_camera: camera_counters,
         })
     }
 
@@ -332,6 +373,11 @@ impl Telerobot {
             .snapshot
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The control loop's timing so far (idle ticks counted apart).
+    pub fn timing(&self) -> rt::TimingReport {
+        self.timing.report()
     }
 
     /// The network side: link counters, session status.
@@ -351,7 +397,7 @@ impl Telerobot {
         if let Some(camera) = self.camera.take() {
             let _ = camera.join();
         }
-        let mut latencies = self
+        let (latencies, outages) = self
             .housekeeping
             .take()
             .and_then(|h| h.join().ok())
@@ -384,14 +430,25 @@ impl Telerobot {
                 node: last.node,
                 stable: last.stable,
                 inline_node_builds: last.inline_node_builds,
+                guard: last.guard,
+                fresh_samples: last.fresh_samples,
             },
-            command_latency: rt::Summary::of_samples(&mut latencies),
+            command_latency: latencies.summary(),
             camera_frames: self.feed.counts(),
+            clouds: status.clouds(),
+            camera_over_budget: self.feed.budget_counts(),
             commands_overwritten: self.link.commands_overwritten(),
             outbox_overwritten: self.link.outbox_overwritten(),
             link: self.link.stats().into(),
+            outages,
             parameters,
+            robot: self.robot.as_ref().map(|m| m.report()),
+            ros2_camera: self.ros2_camera.as_ref().map(|c| c.report()),
         };
+        if let Some(sink) = &self.record {
+            let ticks = end.as_ref().map_or(last.tick, |e| e.last.tick + 1);
+            recording::record_end(sink, ticks, &summary);
+        }
         let t = &summary.timing;
         tracing::info!(
             ticks = t.ticks,
@@ -433,12 +490,19 @@ struct Keeper {
     /// Where the waiting spare was built.
     spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
-    latencies: Vec<i64>,
+    /// Command latencies \[ns\] for the summary: a histogram (0.1 % quantiles, fixed size),
+    /// so that a daemon left running keeps flat memory (a list grew by 29 MB an hour).
+    latencies: rt::Histogram,
+    record: Option<Forward>,
+    outages: CommandGaps,
 }
 
 impl Keeper {
     /// Starts the housekeeping thread.
-    fn spawn(self, stop: &Shutdown) -> Result<JoinHandle<Vec<i64>>, DaemonError> {
+    fn spawn(
+        self,
+        stop: &Shutdown,
+    ) -> Result<JoinHandle<(rt::Histogram, transport::Outages)>, DaemonError> {
         let stop = stop.clone();
         std::thread::Builder::new()
             .name("housekeeping".to_owned())
@@ -446,10 +510,11 @@ impl Keeper {
             .map_err(io("the housekeeping thread"))
     }
 
-    /// Runs until `stop`; returns the command latencies \[ns\].
-    fn run(mut self, stop: &Shutdown) -> Vec<i64> {
+    /// Runs until `stop`; returns the command latencies \[ns\] and the outages.
+    fn run(mut self, stop: &Shutdown) -> (rt::Histogram, transport::Outages) {
         let mut last = LoopSnapshot::default();
         let mut connected = false;
+        let mut guard_log = GuardLog::default();
         while !stop.wait_timeout(HOUSEKEEPING) {
             while self.spares.retired.take().is_some() {}
             self.drain_latencies();
@@ -460,6 +525,8 @@ impl Keeper {
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
                 last = s;
+                guard_log.update(&last);
+                self.outages.update(&last);
             }
             let now_connected = self.link.status().connected();
             if connected && !now_connected {
@@ -467,16 +534,20 @@ impl Keeper {
             }
             connected = now_connected;
             self.keep_spare(&last, now_connected);
+            if let Some(f) = &mut self.record {
+                f.round(&self.link);
+            }
         }
         self.drain_latencies();
-        self.latencies
+        if let Some(f) = &mut self.record {
+            f.round(&self.link);
+        }
+        (self.latencies, self.outages.outages)
     }
 
     fn drain_latencies(&mut self) {
         while let Some(lag) = self.command_latency.take() {
-            if self.latencies.len() < MAX_LATENCIES {
-                self.latencies.push(lag);
-            }
+            self.latencies.record(lag);
         }
     }
 

@@ -6,7 +6,8 @@
 //!   thread and a housekeeping thread;
 //! - [`control`]: the real-time loop stepping the telerobot node (`node`) against the robot bridge,
 //!   exactly as the in-process harness steps it (`lab::experiment`);
-//! - the robot: any `node::RobotBridge` — today the scene's simulated world (`sim::SimBridge`);
+//! - [`robot`]: the robot, any `node::RobotBridge` behind the motion guard (`node::guard`) —
+//!   the scene's simulated world (`sim::SimBridge`) or a ROS 2 robot (`ros2::Ros2Bridge`);
 //! - [`camera`]: the simulated camera and its kd-tree, off the real-time thread;
 //! - [`net`]: the QUIC server and its lock-free hand-off to the loop;
 //! - [`cli`]: the command line of the `telerobot` binary.
@@ -20,5 +21,8 @@ pub mod cli;
 pub mod control;
 pub mod daemon;
 pub mod net;
+mod recording;
+pub mod robot;
+mod watch;
 
 pub use daemon::{DaemonError, RunConfig, Summary, Telerobot, run};

@@ -29,7 +29,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("telerobot: {e:#}");
+            eprintln!("telerobot: {}", rt::exit::message(e.as_ref()));
             ExitCode::FAILURE
         }
     }

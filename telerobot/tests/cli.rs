@@ -100,6 +100,18 @@ fn scene_and_loop_flags_are_checked() {
         e.contains("cannot read scene file /nonexistent/s.toml"),
         "{e}"
     );
+    // A directory: the OS's reason once in the printed chain (it was printed twice).
+    let dir = temp_dir("scene-dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = RunConfig::from_args(&run_args(&["--scene", dir.to_str().unwrap()])).unwrap_err();
+    let mut chain = e.to_string();
+    let mut source = std::error::Error::source(&e);
+    while let Some(s) = source {
+        chain = format!("{chain}: {s}");
+        source = s.source();
+    }
+    assert_eq!(chain.matches("os error 21").count(), 1, "{chain}");
+    std::fs::remove_dir_all(&dir).unwrap();
     let bad = temp_dir("scene").with_extension("toml");
     std::fs::write(&bad, "name = \"x\"\n[environment]\nmass_kg = -1.0\n").unwrap();
     let e = RunConfig::from_args(&run_args(&["--scene", bad.to_str().unwrap()]))
@@ -131,6 +143,102 @@ fn run_line<'a>(extra: &[&'a str]) -> Vec<&'a str> {
     ];
     args.extend_from_slice(extra);
     args
+}
+
+/// `run_line` with `extra`, parsed.
+fn run_args(extra: &[&str]) -> telerobot::cli::RunArgs {
+    let Command::Run(args) = parse(&run_line(extra)) else {
+        panic!()
+    };
+    args
+}
+
+#[test]
+fn robot_ros2_takes_the_domain_remappings_qos_and_conventions() {
+    use telerobot::robot::RobotConfig;
+    let args = run_args(&[
+        "--robot",
+        "ros2",
+        "--ros-domain",
+        "7",
+        "--topic",
+        "robot_pose=/franka_robot_state_broadcaster/current_pose",
+        "--topic",
+        "robot_twist=none",
+        "--topic",
+        "target_pose=/cartesian_impedance_controller/target_pose",
+        "--qos",
+        "state=reliable,keep-last-5",
+        "--wrench-sign",
+        "by-tool",
+        "--command-frame",
+        "fr3_link0",
+    ]);
+    let RobotConfig::Ros2 { graph, bridge } = args.robot.robot_config().unwrap() else {
+        panic!("expected ros2")
+    };
+    assert_eq!(graph.domain_id, 7);
+    assert_eq!(
+        bridge.topics.robot_pose.as_str(),
+        "/franka_robot_state_broadcaster/current_pose"
+    );
+    assert_eq!(
+        bridge.topics.target_pose.as_str(),
+        "/cartesian_impedance_controller/target_pose"
+    );
+    // No twist topic: the velocity comes from the pose.
+    assert!(bridge.topics.robot_twist.is_none() && !bridge.state.twist);
+    assert!(bridge.state_qos.reliable && bridge.state_qos.depth == 5);
+    assert!(!bridge.command_qos.reliable && bridge.settings_qos.transient_local);
+    assert_eq!(bridge.state.wrench_sign, ros2::state::WrenchSign::ByTool);
+    assert_eq!(bridge.command_frame.as_deref(), Some("fr3_link0"));
+    // The default: the scene's simulated world.
+    assert_eq!(
+        run_args(&[]).robot.robot_config().unwrap(),
+        RobotConfig::Sim
+    );
+}
+
+#[test]
+fn bad_robot_options_are_named() {
+    let error = |extra: &[&str]| {
+        let args = run_args(extra);
+        args.robot
+            .robot_config()
+            .map(|_| ())
+            .and_then(|()| args.robot.limits(&sim::scene::Scene::exp1()).map(|_| ()))
+            .unwrap_err()
+            .to_string()
+    };
+    for (extra, message) in [
+        (
+            &["--ros-domain", "3"][..],
+            "--ros-domain applies to --robot ros2 only",
+        ),
+        (
+            &["--robot", "ros2", "--ros-domain", "233"][..],
+            "--ros-domain",
+        ),
+        (
+            &["--robot", "ros2", "--topic", "robot_pos=/x"][..],
+            "robot_pos",
+        ),
+        (
+            &["--robot", "ros2", "--topic", "robot_pose=not a topic"][..],
+            "not a topic",
+        ),
+        (&["--robot", "ros2", "--qos", "state=fast"][..], "fast"),
+        (&["--workspace", "1,2"][..], "--workspace \"1,2\""),
+        (&["--max-step-m", "-0.001"][..], "max_step_m"),
+        (&["--workspace", "0.1,0,0,-0.1,1,1"][..], "workspace"),
+    ] {
+        let e = error(extra);
+        assert!(e.contains(message), "{extra:?}: {e}");
+    }
+    let e = Cli::try_parse_from(run_line(&["--robot", "ur"]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("ur"), "{e}");
 }
 
 /// Log lines written to a pipe or a file carry no colour escapes (they did, whatever stderr was).
@@ -177,4 +285,32 @@ fn logs_to_a_pipe_are_plain_text() {
     );
     assert!(status.success(), "{status:?}\n{log}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An unreadable scene file: the OS's reason once (it was printed twice: the message showed its
+/// cause and the error chain printed it again), exit status 1, no backtrace.
+#[test]
+fn a_bad_scene_path_says_why_once() {
+    let dir = std::env::temp_dir();
+    let ids = temp_dir("bad-scene");
+    let Command::GenCert(g) = parse(&["telerobot", "gen-cert", "--out", ids.to_str().unwrap()])
+    else {
+        panic!()
+    };
+    gen_cert(&g, &mut Vec::new()).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_telerobot"))
+        .args(["run", "--listen", "127.0.0.1:0", "--identity"])
+        .arg(&ids)
+        .arg("--trust")
+        .arg(ids.join("telerobot.crt"))
+        .arg("--scene")
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.matches("os error 21").count(), 1, "{stderr}");
+    assert!(!stderr.contains("backtrace"), "{stderr}");
+    std::fs::remove_dir_all(&ids).unwrap();
 }

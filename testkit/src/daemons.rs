@@ -58,6 +58,8 @@ fn telerobot_config(
             .collect(),
         tuning: tuning(delay_ms),
         start_m: telerobot::RunConfig::default_start(&scene),
+        limits: scene.motion_limits(),
+        robot: telerobot::robot::RobotConfig::Sim,
         scene,
         seed: 1,
         periodic: PeriodicConfig {
@@ -65,6 +67,7 @@ fn telerobot_config(
             ..PeriodicConfig::default()
         },
         realtime_priority: None,
+        record: None,
     }
 }
 
@@ -104,6 +107,9 @@ pub fn operator_config(
             seed: 1,
             delay_ms: known_delay_ms,
         }),
+        record: None,
+        stream_to: None,
+        tap: None,
     }
 }
 

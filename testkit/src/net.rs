@@ -113,6 +113,17 @@ impl OperatorClient {
     /// Starts a client connecting to `addr` as `name`, presenting `me` and pinning `pinned`,
     /// with the tests' tuning and a 500 ms longest reconnection wait.
     pub fn start(addr: SocketAddr, me: &Identity, pinned: &Identity, name: &str) -> Self {
+        Self::start_with(addr, me, pinned, name, |_| {})
+    }
+
+    /// [`OperatorClient::start`] with `adjust` applied to the client's configuration.
+    pub fn start_with(
+        addr: SocketAddr,
+        me: &Identity,
+        pinned: &Identity,
+        name: &str,
+        adjust: impl FnOnce(&mut op_net::NetConfig),
+    ) -> Self {
         let mut config = op_net::NetConfig::new(
             addr,
             me.clone(),
@@ -122,6 +133,7 @@ impl OperatorClient {
         );
         config.tuning = tuning(400.0);
         config.reconnect_max = Duration::from_millis(500);
+        adjust(&mut config);
         let (link, io) = op_net::link(
             op_net::DEFAULT_OUTBOX_CAPACITY,
             op_net::DEFAULT_MEASUREMENT_CAPACITY,

@@ -51,10 +51,21 @@ impl RawOperator {
 
     /// Sends a `Hello` speaking `version`; returns the telerobot's answer.
     pub async fn hello(&mut self, name: &str, version: u16) -> t2o::Message {
+        self.hello_wanting_clouds(name, version, false).await
+    }
+
+    /// [`RawOperator::hello`], asking for the cloud frames if `want_clouds` (which this peer
+    /// never reads: its stream limit fills, as a lossy link's does).
+    pub async fn hello_wanting_clouds(
+        &mut self,
+        name: &str,
+        version: u16,
+        want_clouds: bool,
+    ) -> t2o::Message {
         let hello = o2t::Message::Hello(Hello {
             version,
             operator_name: name.into(),
-            want_clouds: false,
+            want_clouds,
         });
         framing::write_frame(&mut self.send, &o2t::encode(&hello))
             .await

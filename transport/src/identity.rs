@@ -26,14 +26,14 @@ pub enum IdentityError {
         source: rcgen::Error,
     },
     /// A file or directory could not be created or read.
-    #[error("{what} {}: {source}", path.display())]
+    #[error("{what} {}: {error}", path.display())]
     Io {
         /// What was being done, e.g. "cannot write the private key".
         what: &'static str,
         /// The file or directory.
         path: PathBuf,
         /// The operating system's reason.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file is there but holds no usable PEM object of the expected kind.
     #[error("{} is not a {expected} in PEM form: {detail}", path.display())]
@@ -44,6 +44,36 @@ pub enum IdentityError {
         expected: &'static str,
         /// What the PEM parser said.
         detail: String,
+    },
+    /// A private key file that the group or others may read, write or run (Unix mode bits
+    /// `0o077`). Refused, as ssh refuses such a key: the key is what lets its holder command the
+    /// robot (or pose as it), and a key others could read must be taken as already leaked — a
+    /// warning would be scrolled past on a robot PC that runs unattended.
+    #[error(
+        "{} has mode {mode:04o}: a private key must not be accessible to group or others; \
+         run `chmod 600 {}`",
+        path.display(),
+        path.display()
+    )]
+    KeyAccessible {
+        /// The key file.
+        path: PathBuf,
+        /// Its permission bits.
+        mode: u32,
+    },
+    /// The certificate and the private key are not a pair (two identities' files mixed up).
+    #[error(
+        "{} and {} are not a pair: the private key does not belong to the certificate \
+         (they come from different identities; use the .crt and .key that gen-cert wrote \
+         together)",
+        cert.display(),
+        key.display()
+    )]
+    NotAPair {
+        /// The certificate file.
+        cert: PathBuf,
+        /// The key file.
+        key: PathBuf,
     },
     /// The file would be overwritten; `gen-cert` never replaces an identity silently.
     #[error("{} already exists: remove it first to make a new identity", path.display())]
@@ -69,6 +99,18 @@ impl Clone for Identity {
             key: self.key.clone_key(),
         }
     }
+}
+
+/// A certificate's short fingerprint: the first 8 bytes of the SHA-256 of its DER, in hex
+/// (`sha256:1a2b…`): what names an operator's identity in logs and refusals (its self-chosen
+/// name is not an identity).
+pub fn fingerprint(der: &[u8]) -> String {
+    let digest = ring::digest::digest(&ring::digest::SHA256, der);
+    let hex: String = digest.as_ref()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!("sha256:{hex}")
 }
 
 /// The certificate file of identity `name` in `dir`: `dir/<name>.crt`.
@@ -97,10 +139,10 @@ impl Identity {
         names: &[&str],
     ) -> Result<(Identity, PathBuf, PathBuf), IdentityError> {
         let (identity, cert_pem, key_pem) = generate(names)?;
-        fs::create_dir_all(dir).map_err(|source| IdentityError::Io {
+        fs::create_dir_all(dir).map_err(|error| IdentityError::Io {
             what: "cannot create the directory",
             path: dir.to_owned(),
-            source,
+            error,
         })?;
         let (cert_file, key_file) = (cert_path(dir, name), key_path(dir, name));
         for path in [&cert_file, &key_file] {
@@ -128,17 +170,49 @@ impl Identity {
         PrivateKeyDer::Pkcs8(self.key.clone_key())
     }
 
-    /// Reads `dir/<name>.crt` and `dir/<name>.key`.
+    /// Reads `dir/<name>.crt` and `dir/<name>.key`. Refuses a key file the group or others
+    /// may access ([`IdentityError::KeyAccessible`], Unix) and a key that does not belong to the
+    /// certificate ([`IdentityError::NotAPair`]).
     pub fn read_pem(dir: &Path, name: &str) -> Result<Identity, IdentityError> {
-        let cert = read_cert(&cert_path(dir, name))?;
+        let cert_file = cert_path(dir, name);
+        let cert = read_cert(&cert_file)?;
         let key_file = key_path(dir, name);
+        check_private(&key_file)?;
         let bytes = read(&key_file, "cannot read the private key")?;
         let key = PrivatePkcs8KeyDer::from_pem_slice(&bytes).map_err(|e| IdentityError::Pem {
-            path: key_file,
+            path: key_file.clone(),
             expected: "PKCS#8 private key",
             detail: e.to_string(),
         })?;
-        Ok(Identity { cert, key })
+        let identity = Identity { cert, key };
+        identity.check_pair(&cert_file, &key_file)?;
+        Ok(identity)
+    }
+
+    /// Whether the key belongs to the certificate (its public key is the certificate's); the
+    /// files are named in the error.
+    fn check_pair(&self, cert_file: &Path, key_file: &Path) -> Result<(), IdentityError> {
+        let signing =
+            rustls::crypto::ring::sign::any_supported_type(&self.private_key()).map_err(|e| {
+                IdentityError::Pem {
+                    path: key_file.to_owned(),
+                    expected: "supported private key (ECDSA, Ed25519 or RSA)",
+                    detail: e.to_string(),
+                }
+            })?;
+        let certified = rustls::sign::CertifiedKey::new(vec![self.cert.clone()], signing);
+        match certified.keys_match() {
+            Ok(()) => Ok(()),
+            Err(rustls::Error::InconsistentKeys(rustls::InconsistentKeys::KeyMismatch)) => {
+                Err(IdentityError::NotAPair {
+                    cert: cert_file.to_owned(),
+                    key: key_file.to_owned(),
+                })
+            }
+            // The public key could not be derived from the key, or the certificate could not
+            // be parsed: rustls says so at the handshake; nothing more is known here.
+            Err(_) => Ok(()),
+        }
     }
 }
 
@@ -188,11 +262,36 @@ fn generate(names: &[&str]) -> Result<(Identity, String, String), IdentityError>
     ))
 }
 
+/// Refuses a private key file whose mode grants the group or others any access (Unix; see
+/// [`IdentityError::KeyAccessible`] for why refuse, not warn). The mode is the target's when
+/// `path` is a symbolic link.
+fn check_private(path: &Path) -> Result<(), IdentityError> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        let metadata = fs::metadata(path).map_err(|error| IdentityError::Io {
+            what: "cannot read the private key",
+            path: path.to_owned(),
+            error,
+        })?;
+        let mode = metadata.permissions().mode() & 0o7777;
+        if mode & 0o077 != 0 {
+            return Err(IdentityError::KeyAccessible {
+                path: path.to_owned(),
+                mode,
+            });
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
+
 fn read(path: &Path, what: &'static str) -> Result<Vec<u8>, IdentityError> {
-    fs::read(path).map_err(|source| IdentityError::Io {
+    fs::read(path).map_err(|error| IdentityError::Io {
         what,
         path: path.to_owned(),
-        source,
+        error,
     })
 }
 
@@ -209,10 +308,10 @@ fn write_new(
     std::os::unix::fs::OpenOptionsExt::mode(&mut options, mode);
     #[cfg(not(unix))]
     let _ = mode;
-    let io = |source| IdentityError::Io {
+    let io = |error| IdentityError::Io {
         what,
         path: path.to_owned(),
-        source,
+        error,
     };
     let mut file = options.open(path).map_err(io)?;
     file.write_all(contents).map_err(io)?;
@@ -250,6 +349,63 @@ mod tests {
         );
         let missing = Identity::read_pem(&dir, "nobody").unwrap_err().to_string();
         assert!(missing.contains("nobody.crt"), "{missing}");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn temp_dir(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("transport-identity-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// Issue 11: a key file with mode 0644 was accepted silently.
+    #[cfg(unix)]
+    #[test]
+    fn a_key_others_may_read_is_refused_naming_the_file_and_its_mode() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = temp_dir("mode");
+        let (_, _, key) = Identity::generate_files(&dir, "operator", &["operator"]).unwrap();
+        for mode in [0o644, 0o640, 0o604, 0o601, 0o610] {
+            fs::set_permissions(&key, fs::Permissions::from_mode(mode)).unwrap();
+            let e = Identity::read_pem(&dir, "operator").unwrap_err();
+            assert!(
+                matches!(e, IdentityError::KeyAccessible { mode: m, .. } if m == mode),
+                "{mode:o}: {e:?}"
+            );
+            let text = e.to_string();
+            let shown = format!("{mode:04o}");
+            for part in [key.display().to_string(), shown, "chmod 600".to_owned()] {
+                assert!(text.contains(&part), "{text}");
+            }
+        }
+        for mode in [0o600, 0o400] {
+            fs::set_permissions(&key, fs::Permissions::from_mode(mode)).unwrap();
+            assert!(Identity::read_pem(&dir, "operator").is_ok(), "{mode:o}");
+        }
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue 11: a certificate and a key of two identities gave rustls's `KeyMismatch: keys may
+    /// not be consistent` at the handshake, naming neither file.
+    #[test]
+    fn a_certificate_and_key_of_two_identities_are_refused_naming_both_files() {
+        let dir = temp_dir("pair");
+        let (_, crt, key) = Identity::generate_files(&dir, "operator", &["operator"]).unwrap();
+        let other = dir.join("other");
+        let (_, _, other_key) =
+            Identity::generate_files(&other, "operator", &["operator"]).unwrap();
+        // The other identity's key under this identity's name (rename keeps its mode, 0600).
+        fs::rename(&other_key, &key).unwrap();
+        let e = Identity::read_pem(&dir, "operator").unwrap_err();
+        assert!(matches!(e, IdentityError::NotAPair { .. }), "{e:?}");
+        let text = e.to_string();
+        assert!(
+            text.contains(&crt.display().to_string())
+                && text.contains(&key.display().to_string())
+                && text.contains("not a pair"),
+            "{text}"
+        );
         fs::remove_dir_all(&dir).unwrap();
     }
 }

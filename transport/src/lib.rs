@@ -45,6 +45,7 @@ pub use handoff::{Mailbox, Outbox, Received};
 pub use identity::{Identity, IdentityError};
 pub use pin::{OperatorPins, TelerobotPin};
 pub use report::LinkReport;
+pub use rt::Outages;
 pub use stats::{DatagramLink, LinkSnapshot, LinkStats};
 pub use status::{SessionCore, SessionRecorder};
 pub use tuning::{Congestion, LinkTuning};

@@ -2,5 +2,6 @@
 //! writes files and (where a figure is a time) passes in the clock.
 
 pub mod estimate;
+pub mod estimate_from;
 pub mod stress;
 pub mod work_precision;

@@ -28,6 +28,7 @@ use sim::workload;
 
 /// Arguments of `mmt contact-bench`.
 #[derive(clap::Args, Debug, Clone)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Points in the noisy plane (640×480 = 307200 is one depth frame).
     #[arg(long, default_value_t = 307_200, value_parser = positive)]

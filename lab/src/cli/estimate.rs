@@ -7,6 +7,7 @@ use mmt::model::backsolve::Confidence;
 
 /// The estimator on the simulated exp-1 object with Franka-like sensor noise.
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct EstimateArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
@@ -23,9 +24,17 @@ pub struct EstimateArgs {
     /// Forgetting factor per 1 ms tick.
     #[arg(long, default_value_t = EstimateConfig::default().forgetting)]
     forgetting: f64,
+    /// Run the estimator on a recorded telerobot measurement stream instead (a telerobot, demo
+    /// or experiment recording; the replay robot bridge). Takes the recorded scene's cut-off
+    /// and forgetting factor unless --cutoff-hz or --forgetting is given.
+    #[arg(long, value_name = "FILE.mcap")]
+    from: Option<std::path::PathBuf>,
 }
 
 pub fn run(args: EstimateArgs) -> Result<()> {
+    if let Some(path) = &args.from {
+        return from(path, &args);
+    }
     let report = estimate(&EstimateConfig {
         seconds: args.seconds,
         seed: args.seed,
@@ -115,4 +124,61 @@ fn print_parameters(report: &EstimateReport) {
         let err = err.map_or("-".to_string(), |v| format!("{v:+.1} %"));
         println!("{name:<22} {truth:>12.4} {est:>12} {err:>9}");
     }
+}
+
+/// `mmt estimate --from FILE.mcap`.
+fn from(path: &std::path::Path, args: &EstimateArgs) -> Result<()> {
+    use crate::analysis::estimate_from::{EstimateFromConfig, estimate_from};
+    // Only the options given on the command line override the recorded scene's settings.
+    let defaults = EstimateConfig::default();
+    let config = EstimateFromConfig {
+        cutoff_hz: (args.cutoff_hz != defaults.cutoff_hz).then_some(args.cutoff_hz),
+        forgetting: (args.forgetting != defaults.forgetting).then_some(args.forgetting),
+    };
+    let r = estimate_from(path, &config)?;
+    if args.json {
+        return super::print_json(&r);
+    }
+    let opt =
+        |v: Option<f64>, unit: &str| v.map_or("never".to_string(), |v| format!("{v:.3} {unit}"));
+    println!("{}", r.recording);
+    println!(
+        "replayed {} ticks ({:.1} s) of scene {}, SVF {} Hz, forgetting {}; {} contact episode(s), {} camera frames ({} missing)",
+        r.ticks,
+        r.seconds,
+        r.scene,
+        r.cutoff_hz,
+        r.forgetting,
+        r.contact_onsets,
+        r.clouds.0,
+        r.clouds.1
+    );
+    println!(
+        "reconstruction error while confident: {}",
+        opt(r.reconstruction_error_pct, "%")
+    );
+    println!(
+        "time to stable parameters:           {}",
+        opt(r.time_to_stable_s, "s")
+    );
+    println!(
+        "parameters published: {}; the same as the recorded run's: {}",
+        r.parameter_messages,
+        if r.same_as_recorded {
+            "yes, bit for bit"
+        } else {
+            "no"
+        }
+    );
+    for p in &r.parameters {
+        let values: Vec<String> = p
+            .values
+            .iter()
+            .map(|(name, truth, est, err)| {
+                format!("{name} {est:.4} (true {truth:.4}, {err:+.1} %)")
+            })
+            .collect();
+        println!("parameters, {}: {}", p.axes, values.join(", "));
+    }
+    Ok(())
 }

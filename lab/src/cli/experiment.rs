@@ -1,6 +1,6 @@
 //! `mmt experiment`: the thesis's experiments in-process.
 
-use crate::experiment::{ExperimentConfig, Kind, run};
+use crate::experiment::{ExperimentConfig, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
 use sim::scene::Scene;
@@ -9,6 +9,7 @@ use std::time::Instant;
 
 /// Reproduce thesis experiments 1–3 in-process (deterministic, faster than real time).
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct ExperimentArgs {
     /// exp1 (no delay), exp2 (estimator, Franka-like sensors), exp3 (400 ms one-way delay).
     name: String,
@@ -52,33 +53,34 @@ pub struct ExperimentArgs {
     /// Datagrams sent ahead of their turn each way [%] (needs a delay).
     #[arg(long, default_value_t = 0.0)]
     reorder_pct: f64,
+    /// Recording and live view (on the simulated clock: faster than real time).
+    #[command(flatten)]
+    record: record::cli::RecordArgs,
 }
 
-pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
-    let kind = Kind::parse(&args.name)?;
-    let scene = match &args.scene {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
-            Scene::from_toml(&text, &path.display().to_string())?
-        }
-        None => Scene::exp1(),
-    };
-    let mut config = ExperimentConfig::new(kind, scene);
-    if let Some(d) = args.delay_ms {
-        config.delay_ms = d;
+/// The link's loss, duplication and reordering, checked as the user wrote them (percent) before
+/// they become the harness's fractions.
+fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<()> {
+    for (flag, pct) in [
+        ("--loss-pct", args.loss_pct),
+        ("--duplicate-pct", args.duplicate_pct),
+        ("--reorder-pct", args.reorder_pct),
+    ] {
+        anyhow::ensure!(
+            pct.is_finite() && (0.0..50.0).contains(&pct),
+            "{flag} {pct}: expected a percentage in [0, 50)"
+        );
     }
-    config.seconds = args.seconds;
-    config.seed = args.seed;
-    if let Some(t) = args.trajectory {
-        config.trajectory = t;
-    }
-    config.operator.local_contact = !args.remote_contact;
-    config.operator.state_sync = !args.no_sync;
-    config.jitter_ms = args.jitter_ms;
     config.loss = args.loss_pct / 100.0;
     config.duplicate = args.duplicate_pct / 100.0;
     config.reorder = args.reorder_pct / 100.0;
+    Ok(())
+}
+
+pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
+    let config = config(&args)?;
+    // Every setting before any file: a refused run leaves no recording behind.
+    config.validate()?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
@@ -89,12 +91,25 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
         bar
     });
+    // Checked before the run: a path that cannot be written must not cost the run.
+    let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
-    let (series, report) = run(&config, &mut |f| {
-        if let Some(bar) = &bar {
-            bar.set_position((f * 1000.0) as u64);
-        }
-    })?;
+    // Closed on every way out: finished below, or dropped with an error.
+    let recorder = args.record.start(record::Kind::Experiment, 0)?;
+    if let Some(addr) = recorder.as_ref().and_then(record::Recorder::live_addr) {
+        eprintln!("live view: open ws://{addr} in Foxglove or Lichtblick");
+    }
+    let sink = recorder.as_ref().map(record::Recorder::sink);
+    let (series, report) = run_recorded(
+        &config,
+        &mut |f| {
+            if let Some(bar) = &bar {
+                bar.set_position((f * 1000.0) as u64);
+            }
+        },
+        sink,
+    )?;
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
     let wall = started.elapsed().as_secs_f64();
     if let Some(bar) = &bar {
         bar.finish_and_clear();
@@ -104,17 +119,18 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         "wall_seconds": wall,
         "real_time_factor": report.sim_seconds / wall,
     });
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(dir) = &dir {
         for (name, bytes) in crate::report::files(&report, &series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+            dir.write_atomic(&name, &bytes)?;
         }
         // Wall-clock time lives apart so report.json is bit-for-bit reproducible.
-        std::fs::write(
-            dir.join("timing.json"),
-            serde_json::to_string_pretty(&timing)?,
+        dir.write_atomic(
+            "timing.json",
+            serde_json::to_string_pretty(&timing)?.as_bytes(),
         )?;
+    }
+    if let Some(r) = &recorded {
+        eprintln!("{}", record::cli::summary(r));
     }
     if args.json {
         let mut v = serde_json::to_value(&report)?;
@@ -132,4 +148,96 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The experiment the options describe.
+fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
+    let kind = Kind::parse(&args.name)?;
+    let scene = match &args.scene {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            let scene = Scene::from_toml(&text, &path.display().to_string())?;
+            if let Some(fit) = scene.cloud_budget() {
+                eprintln!("mmt: warning: {}: {fit}", path.display());
+            }
+            scene
+        }
+        None => Scene::exp1(),
+    };
+    let mut config = ExperimentConfig::new(kind, scene);
+    if let Some(d) = args.delay_ms {
+        config.delay_ms = d;
+    }
+    config.seconds = args.seconds;
+    config.seed = args.seed;
+    if let Some(t) = &args.trajectory {
+        config.trajectory = t.clone();
+    }
+    config.operator.local_contact = !args.remote_contact;
+    config.operator.state_sync = !args.no_sync;
+    config.jitter_ms = args.jitter_ms;
+    link_faults(&mut config, args)?;
+    Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: ExperimentArgs,
+    }
+
+    /// Issue 11: `--delay-ms -5` gave clap's "unexpected argument '-5'" while `--delay-ms=-5`
+    /// gave the range error; both forms now give the range error.
+    #[test]
+    fn a_negative_number_is_a_value_in_both_forms() {
+        for (flag, value) in [("--delay-ms", "-5"), ("--seconds", "-5")] {
+            let joined = format!("{flag}={value}");
+            let spaced = Cli::try_parse_from(["mmt", "exp1", flag, value]).unwrap();
+            let equals = Cli::try_parse_from(["mmt", "exp1", &joined]).unwrap();
+            let spaced = run_cmd(spaced.args).unwrap_err().to_string();
+            let equals = run_cmd(equals.args).unwrap_err().to_string();
+            assert_eq!(spaced, equals, "{flag}");
+            assert!(spaced.contains(value), "{spaced}");
+        }
+    }
+
+    /// Before: `--loss-pct 150` was refused as "loss = 1.5: a fraction".
+    #[test]
+    fn percentages_are_checked_as_percentages() {
+        for flag in ["--loss-pct", "--duplicate-pct", "--reorder-pct"] {
+            let cli = Cli::try_parse_from(["mmt", "exp1", flag, "150"]).unwrap();
+            let e = run_cmd(cli.args).unwrap_err().to_string();
+            assert_eq!(e, format!("{flag} 150: expected a percentage in [0, 50)"));
+        }
+    }
+
+    /// Before: `--out` naming a file was found after the whole run, and the run was lost.
+    #[test]
+    fn an_out_path_that_is_a_file_is_refused_before_the_run() {
+        let file = std::env::temp_dir().join(format!("mmt-out-file-{}", std::process::id()));
+        std::fs::write(&file, "x").unwrap();
+        let cli = Cli::try_parse_from([
+            "mmt",
+            "exp1",
+            "--seconds",
+            "3000",
+            "--out",
+            file.to_str().unwrap(),
+        ])
+        .unwrap();
+        let started = Instant::now();
+        let e = run_cmd(cli.args).unwrap_err();
+        assert!(
+            e.to_string().ends_with("exists and is not a directory"),
+            "{e}"
+        );
+        assert!(started.elapsed().as_secs() < 5, "the experiment ran first");
+        std::fs::remove_file(&file).unwrap();
+    }
 }

@@ -1,10 +1,12 @@
 //! The binary's command implementations: argument structs, printing, timing, files.
 
 pub mod benchmark;
+pub mod cloud_budget;
 pub mod contact_bench;
 pub mod estimate;
 pub mod experiment;
 pub mod plot;
+pub mod report;
 pub mod stress;
 pub mod transfer;
 pub mod work_precision;

@@ -6,6 +6,7 @@ use clap::Args;
 
 /// The renderer on extreme and garbage inputs.
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct StressArgs {
     /// Print JSON instead of a table.
     #[arg(long)]

@@ -7,6 +7,7 @@ use mmt::render::transfer::transfer;
 
 /// Renderer frequency response against the exact |F/X|.
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct TransferArgs {
     /// Object mass m [kg].
     #[arg(long = "mass")]

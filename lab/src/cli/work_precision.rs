@@ -10,6 +10,7 @@ use std::time::Instant;
 
 /// Error against run time per integrator and step size.
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct WorkPrecisionArgs {
     /// Print JSON instead of a table.
     #[arg(long)]

@@ -16,13 +16,14 @@
 //! measured while executing the command the operator sent at `t` is compared with the force the
 //! operator rendered at `t` — "rendered shifted back by the delay", exactly.
 
+mod recorded;
 mod run;
 
 pub use metrics::{
     Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series, analyse,
     parameter_report,
 };
-pub use run::run;
+pub use run::{run, run_recorded};
 
 use node::operator::OperatorConfig;
 use serde::{Deserialize, Serialize};
@@ -124,7 +125,8 @@ impl ExperimentConfig {
         }
     }
 
-    fn validate(&self) -> Result<(), ExperimentError> {
+    /// Every setting against its range: the field, the value and what is allowed.
+    pub fn validate(&self) -> Result<(), ExperimentError> {
         let field = |field: &'static str, value: f64, ok: bool, expected: &'static str| {
             if ok {
                 Ok(())

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use metrics::{NodeInfo, RunInfo, Series, analyse, parameter_report};
 use mmt::contact::CloudIndex;
 use netem::{Channel, LinkConfig};
+use node::MotionGuard;
 use node::operator::{OperatorConfig, OperatorNode};
 use node::telerobot::{CommandSample, TelerobotNode};
 use node::{OperatorSettings, Target, cloud_to_wire};
@@ -22,7 +23,10 @@ use sim::SimBridge;
 use sim::camera::Camera;
 use sim::trajectory::{Placed, Trajectory, by_name_seeded};
 
+use super::recorded::{HarnessTick, Recorded};
 use super::{ExperimentConfig, ExperimentError, ExperimentReport};
+use record::RecordSink;
+use record::schema::CloudRec;
 
 /// Runs an experiment; `progress(fraction)` is called about a hundred times. Returns the time
 /// series and the report (everything but wall-clock time, which the caller measures).
@@ -30,8 +34,27 @@ pub fn run(
     config: &ExperimentConfig,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Series, ExperimentReport), ExperimentError> {
+    run_recorded(config, progress, None)
+}
+
+/// [`run`], handing everything to `record` too (`mmt experiment --record`/`--live`).
+pub fn run_recorded(
+    config: &ExperimentConfig,
+    progress: &mut dyn FnMut(f64),
+    record: Option<RecordSink>,
+) -> Result<(Series, ExperimentReport), ExperimentError> {
     config.validate()?;
     let mut harness = Harness::new(config)?;
+    if let Some(sink) = record {
+        let frame = *harness.bridge.world().frame();
+        harness.record = Some(Recorded::start(
+            sink,
+            config,
+            harness.period_ns,
+            [frame.tangent2, frame.normal],
+            harness.robot_m,
+        ));
+    }
     let ticks = (config.seconds * 1e9 / harness.period_ns as f64).round() as usize;
     let mut series = Series::with_capacity(
         ticks,
@@ -111,11 +134,15 @@ struct Harness {
     period_ns: i64,
     trajectory: Placed,
     bridge: SimBridge,
+    /// The motion guard the daemon's bridge goes through (`node::guard`), the same limits.
+    guard: MotionGuard,
     robot_m: [f64; 3],
     operator: OperatorSide,
     telerobot: TelerobotSide,
     links: Links,
     buf: Vec<u8>,
+    record: Option<Recorded>,
+    ticks: u64,
 }
 
 impl Harness {
@@ -140,6 +167,7 @@ impl Harness {
             period_ns: settings.period_ns,
             trajectory,
             bridge: SimBridge::new(scene, start, config.seed)?,
+            guard: MotionGuard::new(settings.limits),
             robot_m: start,
             operator: OperatorSide {
                 node: OperatorNode::new(operator_settings, config.operator, start)?,
@@ -156,6 +184,8 @@ impl Harness {
             },
             links: Links::new(config)?,
             buf: Vec::with_capacity(1500),
+            record: None,
+            ticks: 0,
         })
     }
 
@@ -184,11 +214,13 @@ impl Harness {
         series.push_operator(device.position_m, &out, &remote);
         self.deliver_uplink(now);
         let target = self.telerobot.node.target(now, self.robot_m);
+        let target = self.guard.limit(&target, self.robot_m);
         let sample = self.bridge.step_world(&target);
         self.robot_m = sample.truth.position_m;
-        self.take_frame(now, &sample.object_offset_m)?;
+        let cloud_captured_ns = self.take_frame(now, &sample.object_offset_m)?;
         self.send_telerobot(now, &target, &sample);
         let tr = &self.telerobot.node;
+        let operator_state = self.operator.node.tangential_state();
         series.push_true_force(target.command_sample_time_ns, sample.truth.force_on_tool_n);
         series.push_telerobot(
             target.command_sample_time_ns,
@@ -197,8 +229,24 @@ impl Harness {
             tr.is_stable(),
             tr.reconstruction(),
             sample.tangential_state,
-            self.operator.node.tangential_state(),
+            operator_state,
         );
+        if let Some(r) = &mut self.record {
+            r.tick(&HarnessTick {
+                index: self.ticks,
+                now,
+                device: &device,
+                out: &out,
+                remote: &remote,
+                proxy_m: self.operator.node.proxy_m(),
+                operator_state,
+                target: &target,
+                sample: &sample,
+                cloud_captured_ns,
+                telerobot: tr,
+            });
+        }
+        self.ticks += 1;
         Ok(())
     }
 
@@ -256,20 +304,37 @@ impl Harness {
         }
     }
 
-    /// A camera frame, if one is due: indexed, installed in the telerobot node, sent.
-    fn take_frame(&mut self, now: i64, object_offset_m: &[f64; 2]) -> Result<(), ExperimentError> {
+    /// A camera frame, if one is due: indexed, installed in the telerobot node, sent. Returns
+    /// the capture time of a frame installed.
+    fn take_frame(
+        &mut self,
+        now: i64,
+        object_offset_m: &[f64; 2],
+    ) -> Result<Option<i64>, ExperimentError> {
         let tr = &mut self.telerobot;
         let frame = tr
             .camera
             .frame(now, self.bridge.world(), self.robot_m, object_offset_m)
             .map_err(|e| ExperimentError::Cloud(e.to_string()))?;
-        let Some(frame) = frame else { return Ok(()) };
+        let Some(frame) = frame else { return Ok(None) };
+        let captured = frame.timestamp_ns();
         match CloudIndex::build(&frame) {
             Ok(index) => {
                 tr.frame_id += 1;
                 let index = Arc::new(index);
                 tr.node.set_cloud(Arc::clone(&index), tr.frame_id);
-                let message = down::Message::Cloud(cloud_to_wire(tr.frame_id, frame));
+                let wire = cloud_to_wire(tr.frame_id, frame);
+                if let Some(r) = &mut self.record {
+                    r.cloud(
+                        now,
+                        CloudRec {
+                            frame_id: wire.frame_id,
+                            timestamp_ns: wire.timestamp_ns,
+                            points: Arc::new(wire.points.clone()),
+                        },
+                    );
+                }
+                let message = down::Message::Cloud(wire);
                 down::encode_into(&message, &mut self.buf);
                 self.links
                     .cloudlink
@@ -279,10 +344,13 @@ impl Harness {
                 while tr.in_flight.len() > 64 {
                     tr.in_flight.pop_front();
                 }
+                Ok(Some(captured))
             }
-            Err(_) => tr.node.count_rejected_cloud(),
+            Err(_) => {
+                tr.node.count_rejected_cloud();
+                Ok(None)
+            }
         }
-        Ok(())
     }
 
     /// Steps the telerobot node with the robot's sample; its datagrams go onto the downlink.
@@ -320,7 +388,7 @@ impl Harness {
         let mut parameters =
             parameter_report(&config.scene, [normal.as_ref(), tangential.as_ref()]);
         for p in &mut parameters {
-            let estimator = match p.axes {
+            let estimator = match p.axes.as_str() {
                 "normal" => telerobot.normal_estimator(),
                 _ => telerobot.tangential_estimator(),
             };
@@ -336,7 +404,7 @@ impl Harness {
         .into_iter()
         .filter_map(|(axes, e)| {
             e.map(|e| metrics::EstimatorReport {
-                axes,
+                axes: axes.to_owned(),
                 stats: e.stats(),
             })
         })
@@ -348,6 +416,9 @@ impl Harness {
             shadow: self.operator.shadow.stats(),
             telerobot: telerobot.stats(),
         };
+        if let Some(r) = self.record {
+            r.finish(self.ticks as i64 * self.period_ns, self.ticks, &nodes);
+        }
         let report = analyse(&info, &series, nodes);
         (series, report)
     }

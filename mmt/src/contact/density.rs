@@ -94,7 +94,7 @@ impl DensityBound {
 /// A multiplicative hash (FxHash's mixing step) for grid cells: the std SipHash costs several
 /// times more per point on the index build.
 #[derive(Default)]
-struct CellHasher(u64);
+pub(super) struct CellHasher(u64);
 
 impl CellHasher {
     fn add(&mut self, v: u64) {

@@ -312,7 +312,7 @@ fn contact_step(u: Vec3, normal: Option<Vec3>, c: &ProxyConfig) -> Vec3 {
 
 /// The largest ball the proxy queries [m]: a sweep segment's (`seg/2 + r3`) or the surface's
 /// (`r3`), plus the reuse margin.
-fn max_query_radius_m(c: &ProxyConfig) -> f64 {
+pub(super) fn max_query_radius_m(c: &ProxyConfig) -> f64 {
     let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
     0.5 * seg + c.r3_m.max(c.rest_distance_m()) + QUERY_MARGIN_OF_R3 * c.r3_m
 }

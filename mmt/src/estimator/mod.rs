@@ -151,7 +151,7 @@ pub struct Update {
 }
 
 /// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EstimatorStats {
     /// Samples with a non-finite value, dropped before the filters.
     pub rejected_samples: u64,
@@ -176,7 +176,7 @@ pub struct EstimatorStats {
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RejectionCounts {
     /// A coefficient or parameter not finite.
     pub non_finite: u64,

@@ -50,6 +50,10 @@ pub struct NetArgs {
     /// Expected one-way delay of the link [ms]; sets QUIC's initial RTT estimate.
     #[arg(long, value_name = "MS", default_value_t = 20.0)]
     pub expected_delay_ms: f64,
+    /// End the run when the telerobot is busy (another operator in control), instead of asking
+    /// again until `--seconds` is over.
+    #[arg(long)]
+    pub no_wait: bool,
 }
 
 /// Why the network flags could not be turned into a [`NetConfig`].
@@ -88,6 +92,7 @@ impl NetArgs {
             self.operator_name.clone(),
         );
         config.tuning = LinkTuning::with_expected_delay_ms(self.expected_delay_ms)?;
+        config.wait_when_busy = !self.no_wait;
         Ok(Some(config))
     }
 }

@@ -2,11 +2,13 @@
 //! report.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context as _;
 use clap::Args;
 use rt::{PeriodicConfig, Shutdown};
+
+use record::cli::RecordArgs;
+use record::{Kind, Recorder, RecorderReport};
 
 use crate::app::{self, Outcome, RunConfig};
 use crate::device::{DeviceSpec, OpenOptions};
@@ -17,7 +19,9 @@ use crate::safety::SafetyConfig;
 /// `operator run`'s run length, loop and report options.
 #[derive(Clone, Debug, Args)]
 pub struct LoopArgs {
-    /// Stop after this many seconds of haptic loop (default: run until Ctrl-C).
+    /// Stop after this many seconds (default: run until Ctrl-C). It bounds the whole run:
+    /// waiting for the telerobot (unreachable, or busy) counts, and the haptic loop runs for
+    /// what is left.
     #[arg(long, value_name = "S")]
     pub seconds: Option<f64>,
     /// Write report.json and series.csv into DIR (`mmt plot DIR` draws the plots).
@@ -29,6 +33,9 @@ pub struct LoopArgs {
     /// Loop options.
     #[command(flatten)]
     pub rt: RtArgs,
+    /// Recording and live view.
+    #[command(flatten)]
+    pub record: RecordArgs,
 }
 
 /// The real-time loop options of `run` (and of the demo, which runs both loops).
@@ -54,7 +61,8 @@ pub enum LoopArgsError {
 }
 
 impl LoopArgs {
-    fn periodic(&self) -> Result<PeriodicConfig, LoopArgsError> {
+    /// The loop schedule; `--spin-us` and `--seconds` checked.
+    pub(super) fn periodic(&self) -> Result<PeriodicConfig, LoopArgsError> {
         let spin = self.rt.spin_us;
         if !(spin.is_finite() && (0.0..=200.0).contains(&spin)) {
             return Err(LoopArgsError::Spin(spin));
@@ -71,47 +79,83 @@ impl LoopArgs {
     }
 }
 
-/// `operator run` with a telerobot: runs the app, prints and writes the report.
+/// `operator run` with a telerobot: runs the app, prints and writes the report into `dir`
+/// (checked before: `--out`).
 pub(super) fn run_cmd(
     args: &LoopArgs,
+    dir: Option<rt::OutDir>,
     net: NetConfig,
-    device: DeviceSpec,
-    open: OpenOptions,
+    (device, open): (DeviceSpec, OpenOptions),
     safety: SafetyConfig,
     shutdown: Shutdown,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
+    let periodic = args.periodic()?;
+    // On every exit from here (an error included) the recorder is finished or dropped, which
+    // closes the file.
+    let recorder = args.record.start(Kind::Operator, rt::monotonic_ns())?;
+    announce(recorder.as_ref(), args.json, out)?;
     let config = RunConfig {
         net,
         device,
         open,
         safety,
         seconds: args.seconds,
-        periodic: args.periodic()?,
+        periodic,
         realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
         node: node::operator::OperatorConfig::default(),
         experiment: "networked".to_owned(),
         known: None,
+        record: recorder.as_ref().map(Recorder::sink),
+        stream_to: dir.clone(),
+        tap: None,
     };
     let outcome = app::run(config, shutdown)?;
-    emit(&outcome, args.out.as_deref(), args.json, out)
+    let recorded = recorder.map(Recorder::finish).transpose()?;
+    emit(&outcome, dir.as_ref(), args.json, out)?;
+    report_recording(recorded.as_ref(), args.json, out)
 }
 
-/// Prints the report (table or JSON) and writes the files.
-pub fn emit(
-    outcome: &Outcome,
-    dir: Option<&Path>,
+/// Says where the live view is, when there is one.
+fn announce(recorder: Option<&Recorder>, json: bool, out: &mut dyn Write) -> anyhow::Result<()> {
+    if let Some(addr) = recorder.and_then(Recorder::live_addr) {
+        let line = format!("live view: open ws://{addr} in Foxglove or Lichtblick");
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
+    }
+    Ok(())
+}
+
+/// One line on what the recorder did (to stderr under `--json`).
+fn report_recording(
+    report: Option<&RecorderReport>,
     json: bool,
     out: &mut dyn Write,
 ) -> anyhow::Result<()> {
-    if let Some(dir) = dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+    if let Some(r) = report {
+        let line = record::cli::summary(r);
+        if json {
+            eprintln!("{line}");
+        } else {
+            writeln!(out, "{line}")?;
         }
     }
+    Ok(())
+}
+
+/// Prints the report (table or JSON) and writes the files (each atomically), printing first:
+/// a file that cannot be written then costs the file, not the printed report.
+pub fn emit(
+    outcome: &Outcome,
+    dir: Option<&rt::OutDir>,
+    json: bool,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&outcome.report)?)?;
     } else {
@@ -120,11 +164,16 @@ pub fn emit(
             "{}",
             report::table(&outcome.report, &report::PeerFigures::default())
         )?;
-        if let Some(dir) = dir {
+    }
+    if let Some(dir) = dir {
+        for (name, bytes) in report::files(&outcome.report, &outcome.series)? {
+            dir.write_atomic(&name, &bytes)?;
+        }
+        if !json {
             writeln!(
                 out,
                 "files: {0}/report.json, series.csv (plots: cargo run --release -p lab -- plot {0})",
-                dir.display()
+                dir.path().display()
             )?;
         }
     }

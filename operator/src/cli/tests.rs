@@ -98,7 +98,8 @@ fn run_parses_the_device_and_stops_before_the_network() {
     };
     let mut out = Vec::new();
     let code = run(&args, Shutdown::new(), &mut out).unwrap();
-    assert_eq!(code, ExitCode::from(2));
+    // A device check that opened the device succeeded (it exited 2 before).
+    assert_eq!(code, ExitCode::SUCCESS);
     let text = String::from_utf8(out).unwrap();
     assert!(text.contains("scripted:hold"), "{text}");
     assert!(text.contains("WARNING"), "{text}");
@@ -111,7 +112,7 @@ fn bad_device_values_fail_at_parse_time_with_the_allowed_forms() {
     let msg = e.to_string();
     assert!(
         msg.contains("'phantom'")
-            && msg.contains("scripted:NAME, replay:FILE.csv, spacemouse, omega"),
+            && msg.contains("scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"),
         "{msg}"
     );
 }
@@ -198,7 +199,14 @@ fn position_scale_is_checked_and_applied() {
     assert_eq!(run_args(&[]).safety().unwrap().position_scale, 1.0);
     let args = run_args(&["--position-scale", "0.25"]);
     assert_eq!(args.safety().unwrap().position_scale, 0.25);
-    for (bad, shown) in [("0", "0"), ("-2", "-2"), ("nan", "NaN"), ("inf", "inf")] {
+    for (bad, shown) in [
+        ("0", "0"),
+        ("-2", "-2"),
+        ("nan", "NaN"),
+        ("inf", "inf"),
+        ("1e3", "1000"),
+        ("20.5", "20.5"),
+    ] {
         let flag = format!("--position-scale={bad}");
         let args = run_args(&[&flag]);
         // Refused before the device is opened or the network is looked at.
@@ -265,4 +273,33 @@ fn loop_flags_are_checked() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("--realtime-priority"), "{e}");
+}
+
+/// Issue 11: `--spin-us -3` gave clap's "unexpected argument '-3'" while `--spin-us=-3` gave
+/// the range error — and without `--connect` the loop flags were not checked at all (exit 0),
+/// with it only after the "network:" line. Both forms now give the range error, before
+/// anything is printed.
+#[test]
+fn a_negative_number_is_a_value_in_both_forms() {
+    for (flag, value) in [
+        ("--position-scale", "-2"),
+        ("--spin-us", "-3"),
+        ("--seconds", "-1"),
+    ] {
+        let joined = format!("{flag}={value}");
+        let mut errors = Vec::new();
+        for argv in [vec![flag, value], vec![joined.as_str()]] {
+            let args = run_args(&argv);
+            let mut printed = Vec::new();
+            let e = run(&args, Shutdown::new(), &mut printed).unwrap_err();
+            assert!(printed.is_empty(), "{argv:?}: printed before the check");
+            errors.push(e.to_string());
+        }
+        assert_eq!(errors[0], errors[1], "{flag}");
+        assert!(
+            errors[0].contains(flag) && errors[0].contains(value),
+            "{}",
+            errors[0]
+        );
+    }
 }

@@ -11,7 +11,7 @@
 //!   on/off). [`ManagedDevice`] wraps any backend and owns the state machine and the **enable
 //!   ramp**, so every backend behaves the same way.
 //! - Backends: [`scripted`] (a [`sim::trajectory::Trajectory`], the simulated twin),
-//!   [`replay`] (a recorded CSV), [`spacemouse`] (HID, input only), [`omega`] (Force Dimension SDK
+//!   [`replay`] (a recorded CSV or MCAP), [`spacemouse`] (HID, input only), [`omega`] (Force Dimension SDK
 //!   loaded at run time).
 //! - [`DeviceSpec`] / [`open_device`] — the `--device` value, parsed and opened.
 //!
@@ -264,7 +264,7 @@ pub trait Backend: Send {
 pub enum DeviceError {
     /// A `--device` value that is not one of the allowed forms.
     #[error(
-        "invalid device '{value}': {reason}; allowed forms: scripted:NAME, replay:FILE.csv, spacemouse, omega"
+        "invalid device '{value}': {reason}; allowed forms: scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"
     )]
     InvalidSpec {
         /// The value given.

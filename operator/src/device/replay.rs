@@ -14,6 +14,10 @@
 //! held with zero velocity.
 //!
 //! Not a general CSV reader: no quoting, no other columns.
+//!
+//! `replay:FILE.mcap` plays the device trajectory of a recording (`operator run --record`, the
+//! demo's or `mmt experiment`'s): the measured device position and velocity of every recorded
+//! haptic tick, timed from the run's first tick ([`ReplayTrajectory::from_recording`]).
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -97,6 +101,9 @@ pub enum ReplayError {
         /// The previous sample's time [s].
         previous_s: f64,
     },
+    /// A recording that cannot be replayed (not ours, another version, another kind).
+    #[error("{0}")]
+    Recording(#[from] record::ReadError),
     /// No header or no sample.
     #[error(
         "{file}: {what}; expected the header '{HEADER_POSITION}' (or '{HEADER_FULL}') and at least one sample line"
@@ -132,6 +139,54 @@ impl ReplayTrajectory {
             error,
         })?;
         Self::parse(&text, &file)
+    }
+
+    /// Reads the device trajectory of a recording (`.mcap`): one sample per recorded haptic
+    /// tick. Ticks out of order or repeated (a second session's restart) are left out, so times
+    /// increase strictly.
+    pub fn from_recording(path: &Path) -> Result<Self, ReplayError> {
+        let rec = record::read(
+            path,
+            &[
+                record::schema::topic::RUN,
+                record::schema::topic::OPERATOR_TICK,
+            ],
+        )?;
+        rec.require(
+            &[
+                record::Kind::Operator,
+                record::Kind::Demo,
+                record::Kind::Experiment,
+            ],
+            "replay:FILE.mcap needs a recording with the haptic loop's ticks (operator run, the \
+             demo or mmt experiment)",
+        )?;
+        let file = path.display().to_string();
+        let mut samples: Vec<Sample> = Vec::new();
+        for (t_s, position_m, velocity_m_per_s) in record::replay::device_trajectory(&rec) {
+            let finite = t_s.is_finite()
+                && position_m
+                    .iter()
+                    .chain(&velocity_m_per_s)
+                    .all(|v| v.is_finite());
+            if finite && samples.last().is_none_or(|p| t_s > p.t_s) {
+                samples.push(Sample {
+                    t_s,
+                    position_m,
+                    velocity_m_per_s,
+                });
+            }
+        }
+        if samples.is_empty() {
+            return Err(ReplayError::Empty {
+                file,
+                what: "the recording holds no haptic tick",
+            });
+        }
+        let name = path
+            .file_name()
+            .map_or_else(|| file.clone(), |n| n.to_string_lossy().into_owned());
+        Ok(Self { name, samples })
     }
 
     /// Parses replay text; `file` names it in errors.

@@ -20,7 +20,8 @@ pub enum DeviceSpec {
         /// Trajectory name.
         name: String,
     },
-    /// `replay:FILE.csv` — a recorded device trajectory ([`super::replay`]).
+    /// `replay:FILE.csv` or `replay:FILE.mcap` — a recorded device trajectory
+    /// ([`super::replay`]).
     Replay {
         /// The CSV file.
         path: PathBuf,
@@ -107,7 +108,14 @@ pub fn open_device(
             options.managed,
         )?),
         DeviceSpec::Replay { path } => Box::new(ManagedDevice::new(
-            ScriptedBackend::new(Box::new(ReplayTrajectory::load(path)?), "replay"),
+            ScriptedBackend::new(
+                Box::new(if path.extension().is_some_and(|e| e == "mcap") {
+                    ReplayTrajectory::from_recording(path)?
+                } else {
+                    ReplayTrajectory::load(path)?
+                }),
+                "replay",
+            ),
             options.managed,
         )?),
         DeviceSpec::SpaceMouse => Box::new(ManagedDevice::new(
@@ -184,7 +192,7 @@ mod tests {
             let msg = bad.parse::<DeviceSpec>().unwrap_err().to_string();
             assert!(msg.contains(&format!("'{bad}'")), "{msg}");
             assert!(
-                msg.contains("scripted:NAME, replay:FILE.csv, spacemouse, omega"),
+                msg.contains("scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"),
                 "{msg}"
             );
         }

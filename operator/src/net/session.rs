@@ -7,7 +7,7 @@ use bytes::Bytes;
 use protocol::clock::ClockOffsetEstimator;
 use protocol::handshake::{HandshakeError, accept_welcome};
 use protocol::operator_to_telerobot::{self as o2t, Hello};
-use protocol::telerobot_to_operator::{self as t2o, Admission, CloudFrame};
+use protocol::telerobot_to_operator::{self as t2o, Admission, CloudFrame, Refusal};
 use quinn::{Connection, ConnectionError, ReadError, SendStream, WriteError};
 use rt::monotonic_ns;
 use tokio::sync::{mpsc, watch};
@@ -40,6 +40,8 @@ pub(super) struct Client<'a> {
     pub(super) io: NetIo,
     pub(super) pin: Arc<TelerobotPin>,
     pub(super) stop: watch::Receiver<bool>,
+    /// "No answer" was said at warn level (once; later attempts at info).
+    pub(super) warned_no_answer: bool,
 }
 
 /// Why the handshake did not open a session.
@@ -66,13 +68,16 @@ impl Client<'_> {
                 return Ended::Fatal(e);
             }
             Ok(Err(Failure::Lost(reason))) => {
-                tracing::info!(telerobot = %self.config.connect, %reason, "could not open a session");
+                self.log_lost(&reason);
                 status.end(&reason);
                 return Ended::Lost { had_session: false };
             }
             Err(_) => {
-                let reason = format!("no session within {:?}", self.config.handshake_timeout);
-                tracing::info!(telerobot = %self.config.connect, %reason, "could not open a session");
+                let reason = format!(
+                    "no answer from {} within {:?}",
+                    self.config.connect, self.config.handshake_timeout
+                );
+                self.log_lost(&reason);
                 status.end(&reason);
                 return Ended::Lost { had_session: false };
             }
@@ -84,6 +89,19 @@ impl Client<'_> {
             Ended::Stopped
         } else {
             Ended::Lost { had_session: true }
+        }
+    }
+
+    /// An attempt that opened no session: a telerobot that does not answer (or is busy) is said
+    /// once at warn level, naming the address; every attempt at info.
+    fn log_lost(&mut self, reason: &str) {
+        let silent = reason.starts_with("no answer") || reason.contains("timed out");
+        if silent && !self.warned_no_answer {
+            self.warned_no_answer = true;
+            tracing::warn!(telerobot = %self.config.connect, %reason,
+                "no answer from {}: retrying until the run ends", self.config.connect);
+        } else {
+            tracing::info!(telerobot = %self.config.connect, %reason, "could not open a session");
         }
     }
 
@@ -120,6 +138,9 @@ impl Client<'_> {
                 connection.close(CloseCode::Refused.code(), e.to_string().as_bytes());
                 if let HandshakeError::Refused(refusal) = &e {
                     tracing::warn!(telerobot = %self.config.connect, "refused: {refusal}");
+                    if self.config.wait_when_busy && matches!(refusal, Refusal::Busy { .. }) {
+                        return Err(Failure::Lost(format!("{refusal}; waiting for the slot")));
+                    }
                 }
                 Err(Failure::Fatal(e.into()))
             }

@@ -1,40 +1,27 @@
-//! The report of a networked run: the same figures as `mmt experiment` (computed by
-//! `metrics::analyse` from a [`Series`] built out of what the operator recorded), plus
-//! what only a real link has — `measured_delay_ms` by cross-correlation ([`delay`]), the haptic
-//! loop's timing, the link's counters and latency, the safety layer's trips.
-//!
-//! How the series is built: operator tick `k` is the command sampled at `t0 + k·T`; each
-//! `Measurement` names the command it executed (`command_sample_time_ns`), so the force the
-//! telerobot measured lines up with the force rendered for the same command — "rendered shifted
-//! by the delay", exactly. The telerobot's ground truth is not on the wire: the "true" force is
-//! the measured one (sensor noise included), the true contact is the telerobot's tracked contact,
-//! and the contact-deflection drift figure is left out. There is no shadow node in the app, so
-//! the remote-only contact figures are left out too.
+//! The report of a networked run: the same figures as `mmt experiment`, and what only a real
+//! link has — `measured_delay_ms` by cross-correlation, the downlink latency (both computed by
+//! [`metrics::networked`] from what the operator recorded, as `mmt report FILE.mcap` computes
+//! them again from a recording) — plus what only the end of the run knows: the haptic loop's
+//! timing, the link's counters, the safety layer's trips, the device's faults.
 
-pub mod delay;
 mod table;
 
-use metrics::{
-    ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series, analyse, parameter_report,
-};
+use metrics::networked::{self, NetworkedFigures, NetworkedRun};
+use metrics::{ExperimentReport, NodeInfo, Series, parameter_report};
 use mmt::render::RendererStats;
 use node::gated_from_wire;
-use node::operator::OperatorOutput;
-use protocol::Header;
-use protocol::operator_to_telerobot::Command;
-use protocol::telerobot_to_operator::{ParameterSet, Parameters, SurfaceFrame};
+use protocol::telerobot_to_operator::{ParameterSet, Parameters};
 use rt::{Summary, TimingReport};
 use serde::Serialize;
 use sim::scene::Scene;
-use transport::LinkReport;
+use transport::{LinkReport, Outages};
 
 use crate::device::{ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
 use crate::helper::Recording;
 use crate::safety::SafetyStats;
-use mmt::vec3;
 
-pub use delay::{DelayEstimate, LagRange};
+pub use metrics::networked::{DelayEstimate, LagRange};
 pub use table::table;
 
 /// Everything a networked run reports.
@@ -64,8 +51,14 @@ pub struct NetworkedReport {
     pub measurements: (u64, u64),
     /// Sessions the haptic loop ran (1 + reconnections).
     pub sessions: u64,
+    /// Times without measurements from the telerobot (100 ms or more) over the whole run,
+    /// across sessions: `link.max_gap_ms` is within a session, and a reconnect restarts it.
+    pub outages: Outages,
     /// Cloud frames indexed and refused.
     pub clouds: (u64, u64),
+    /// Cloud frames over the real-time budget (`mmt::contact::budget`): downsampled to fit, and
+    /// refused (counted in `clouds` too).
+    pub clouds_over_budget: (u64, u64),
     /// What the safety layer did.
     pub safety: SafetyStats,
     /// The operator's renderers (the last session's node): the normal axis first (if the model
@@ -89,6 +82,35 @@ pub struct NetworkedReport {
     pub wall_seconds: f64,
     /// The directions the series' forces are plotted along (`mmt plot` reads them).
     pub series_axes: SeriesAxes,
+}
+
+impl NetworkedReport {
+    /// What the report holds beyond the figures computed from the recorded streams
+    /// ([`NetworkedFigures`]): the counters only the end of the run knows, as JSON. A recording
+    /// keeps them (`/run/end`), and `mmt report FILE.mcap` joins them to the figures it computes
+    /// again.
+    pub fn counters(&self) -> serde_json::Value {
+        let mut all = serde_json::to_value(self).unwrap_or_default();
+        let figures = serde_json::to_value(self.figures()).unwrap_or_default();
+        if let (Some(all), Some(figures)) = (all.as_object_mut(), figures.as_object()) {
+            for key in figures.keys() {
+                all.remove(key);
+            }
+        }
+        all
+    }
+
+    /// The figures computed from the recorded streams, as [`metrics::networked::figures`] gave
+    /// them.
+    pub fn figures(&self) -> NetworkedFigures {
+        NetworkedFigures {
+            experiment: self.experiment.clone(),
+            measured_delay_ms: self.measured_delay_ms,
+            delay_estimate: self.delay_estimate,
+            missing_ticks: self.missing_ticks,
+            downlink_latency: self.downlink_latency,
+        }
+    }
 }
 
 /// The directions a series' forces are plotted along: the surface's second tangent (the thesis's
@@ -118,27 +140,11 @@ pub struct PeerFigures {
 /// What a run knew about itself.
 #[derive(Clone, Debug)]
 pub struct RunFacts {
-    /// `networked` (`operator run`) or `demo`.
-    pub experiment: String,
-    /// Scene name and left-out terms, from the `Welcome`.
-    pub scene: String,
-    /// Terms the scene's model leaves out, from the `Welcome`.
-    pub left_out: Vec<String>,
-    /// The device (`scripted:exp1`, …).
-    pub device: String,
-    /// Seed of the simulated telerobot, if known (0 otherwise).
-    pub seed: u64,
-    /// The set one-way delay, if known (the demo) \[ms\].
-    pub set_delay_ms: Option<f64>,
+    /// What the figures need: names, seed, set delay, tick 0 and period, the final clock offset
+    /// (its `frame` is taken from the loop's end).
+    pub run: NetworkedRun,
     /// The scene's ground truth, if known (the demo): the parameter report compares against it.
     pub truth: Option<Scene>,
-    /// Tick 0's time [ns, operator clock] and the period \[ns\].
-    pub start_ns: i64,
-    /// Tick period \[ns\].
-    pub period_ns: i64,
-    /// The clock offset at the end (telerobot − operator) \[ns\], for measurements taken before
-    /// the first estimate.
-    pub final_offset_ns: Option<i64>,
     /// Link counters at the end.
     pub link: LinkReport,
     /// Measurements lost to the full queue.
@@ -149,58 +155,60 @@ pub struct RunFacts {
     pub wall_seconds: f64,
 }
 
-/// Builds the series and the report of a run.
-pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, NetworkedReport) {
-    let frame = end.frame.unwrap_or(SurfaceFrame {
-        normal: [0.0, 0.0, 1.0],
-        tangent1: [1.0, 0.0, 0.0],
-        tangent2: [0.0, 1.0, 0.0],
-    });
-    let (series, missing_ticks) = series(facts, rec, frame);
-    // The delay takes the run's set delay when known (the demo), else the measured one (a
-    // delay, so not below 0: the estimate spreads ±2 ms around a zero delay): the thesis's
-    // contact-latency figure is two of it.
-    let estimate = measured_delay(facts, rec, &series);
-    let info = RunInfo {
-        experiment: facts.experiment.clone(),
-        scene: facts.scene.clone(),
-        left_out: facts.left_out.clone(),
-        trajectory: facts.device.clone(),
-        seed: facts.seed,
-        delay_ms: facts
-            .set_delay_ms
-            .or(estimate.map(|e| e.delay_ms.max(0.0)))
-            .unwrap_or(0.0),
+/// What the nodes know at the end of a run: the operator's counters, and the parameters received
+/// last against the scene's truth when it is known.
+pub fn node_info(truth: Option<&Scene>, end: &LoopEnd) -> NodeInfo {
+    let parameters = match (truth, end.parameters) {
+        (Some(scene), Some(p)) => {
+            let gated = |s: Option<ParameterSet>| s.and_then(|s| gated_from_wire(&s).ok());
+            let (n, t) = (gated(p.normal), gated(p.tangential));
+            parameter_report(scene, [n.as_ref(), t.as_ref()])
+        }
+        _ => Vec::new(),
     };
-    let nodes = NodeInfo {
-        parameters: parameters(facts, end),
+    NodeInfo {
+        parameters,
         operator: end.node,
         ..NodeInfo::default()
-    };
-    let mut experiment = analyse(&info, &series, nodes);
-    // No shadow node runs in the app: its figures would repeat the operator's.
-    experiment.rms_error_pct_remote_contact = None;
-    experiment.contact_switch_latency_ms.remote_only = None;
+    }
+}
+
+/// Builds the series and the report of a run.
+pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, NetworkedReport) {
+    let mut run = facts.run.clone();
+    run.frame = end.frame.map(|f| [f.normal, f.tangent1, f.tangent2]);
+    let nodes = node_info(facts.truth.as_ref(), end);
+    let (series, figures) = networked::figures(&run, &rec.ticks, &rec.measurements, nodes);
+    let mut experiment = figures.experiment;
+    let ticks = rec.ticks.last().map_or(0, |t| t.index + 1);
+    let outages = networked::mark_outages(
+        &run,
+        ticks,
+        &rec.measurements,
+        &mut experiment.error_over_time,
+    );
     let report = NetworkedReport {
         experiment,
-        measured_delay_ms: estimate.map(|e| e.delay_ms),
-        delay_estimate: estimate,
-        set_delay_ms: facts.set_delay_ms,
+        measured_delay_ms: figures.measured_delay_ms,
+        delay_estimate: figures.delay_estimate,
+        set_delay_ms: run.set_delay_ms,
         parameters_received: end.parameters,
         loop_timing: facts.timing,
-        missing_ticks,
+        missing_ticks: figures.missing_ticks,
         link: facts.link,
-        downlink_latency: downlink_latency(facts, rec),
+        downlink_latency: figures.downlink_latency,
         measurements: (
             rec.measurements.len() as u64,
             facts.measurements_overwritten,
         ),
         sessions: end.sessions,
+        outages,
         clouds: rec.clouds,
+        clouds_over_budget: rec.clouds_over_budget,
         safety: end.safety,
         renderers: end.renderers.clone(),
         device_forces: end.force_record,
-        device: facts.device.clone(),
+        device: run.device.clone(),
         device_state: end.device.operating_state(),
         device_faults: end.device.fault_count(),
         device_fault: end
@@ -214,123 +222,6 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
         },
     };
     (series, report)
-}
-
-/// The last parameters received against the scene's truth, when the run knows it.
-fn parameters(facts: &RunFacts, end: &LoopEnd) -> Vec<ParameterReport> {
-    match (&facts.truth, end.parameters) {
-        (Some(scene), Some(p)) => {
-            let gated = |s: Option<ParameterSet>| s.and_then(|s| gated_from_wire(&s).ok());
-            let (n, t) = (gated(p.normal), gated(p.tangential));
-            parameter_report(scene, [n.as_ref(), t.as_ref()])
-        }
-        _ => Vec::new(),
-    }
-}
-
-/// Each measurement's receipt minus its send time on the operator's clock (mapped with the
-/// clock offset of its time, else the final one): the downlink's one-way latency.
-fn downlink_latency(facts: &RunFacts, rec: &Recording) -> Summary {
-    let mut downlink: Vec<i64> = rec
-        .measurements
-        .iter()
-        .filter_map(|m| {
-            let offset = m.offset_ns.or(facts.final_offset_ns)?;
-            Some(m.received_ns - (m.message.header.send_time_ns - offset))
-        })
-        .collect();
-    Summary::of_samples(&mut downlink)
-}
-
-/// The series, one entry per tick; ticks the loop skipped repeat the previous one (counted).
-fn series(facts: &RunFacts, rec: &Recording, frame: SurfaceFrame) -> (Series, u64) {
-    // Up to the last tick recorded (the recording stops after an hour).
-    let n = rec.ticks.last().map_or(0, |t| t.index as usize + 1);
-    let mut s = Series::with_capacity(n, frame.tangent2, frame.normal, facts.period_ns);
-    let mut records = rec.ticks.iter().peekable();
-    let mut previous = None;
-    let mut missing = 0;
-    for k in 0..n as u64 {
-        let record = match records.next_if(|r| r.index == k) {
-            Some(r) => Some(*r),
-            None => {
-                missing += 1;
-                previous
-            }
-        };
-        previous = record;
-        let r = record.unwrap_or_default();
-        let out = OperatorOutput {
-            force_n: r.force_n,
-            command: Command {
-                header: Header::default(),
-                position_m: r.position_m,
-                velocity_m_per_s: [0.0; 3],
-            },
-            in_contact: r.in_contact,
-            rendering: r.rendering,
-        };
-        s.push_operator(r.position_m, &out, &out);
-    }
-    // The telerobot's stability by command tick (the first measurement executing command k; ticks
-    // without one keep the previous state), so that "time to stable" counts from the first
-    // contact on the same time axis.
-    let mut stable = vec![None; n];
-    for m in &rec.measurements {
-        let msg = &m.message;
-        let command_ns = msg.command_sample_time_ns - facts.start_ns;
-        s.push_telerobot(
-            command_ns,
-            msg.force_on_tool_n,
-            msg.in_contact,
-            msg.estimator_stable,
-            msg.reconstruction.map(|[y2, e2]| (y2, e2)),
-            [(0.0, 0.0); 2],
-            [None; 2],
-        );
-        if let Some(slot) = usize::try_from(command_ns / facts.period_ns)
-            .ok()
-            .filter(|_| command_ns >= 0)
-            .and_then(|k| stable.get_mut(k))
-        {
-            slot.get_or_insert(msg.estimator_stable);
-        }
-    }
-    let mut last = false;
-    s.stable = stable
-        .into_iter()
-        .map(|st| {
-            last = st.unwrap_or(last);
-            last
-        })
-        .collect();
-    (s, missing)
-}
-
-/// The cross-correlation of the rendered and the measured tangential force, over the ticks where
-/// a model is rendered.
-fn measured_delay(facts: &RunFacts, rec: &Recording, s: &Series) -> Option<DelayEstimate> {
-    let rendered: Vec<f64> = s.rendered.iter().map(|f| vec3::dot(*f, s.axis)).collect();
-    let period = facts.period_ns as f64;
-    let measured: Vec<(f64, f64)> = rec
-        .measurements
-        .iter()
-        .filter_map(|m| {
-            let offset = m.offset_ns.or(facts.final_offset_ns)?;
-            let t = m.message.header.sample_time_ns - offset - facts.start_ns;
-            Some((
-                t as f64 / period,
-                vec3::dot(m.message.force_on_tool_n, s.axis),
-            ))
-        })
-        .collect();
-    delay::estimate(
-        &rendered,
-        &s.rendering,
-        &measured,
-        period * 1e-9,
-        LagRange::default(),
-    )
 }
 
 /// The files of `--out DIR`: `report.json` with every figure of [`NetworkedReport`], and the

@@ -38,6 +38,7 @@ fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> st
         &r.loop_timing,
     );
     link_rows(&mut rows, &r.link, peer);
+    outage_rows(&mut rows, r);
     latency_rows(&mut rows, r, peer);
     rows.row("sessions", r.sessions.to_string());
     if let Some(t) = &peer.telerobot_timing {
@@ -111,6 +112,30 @@ fn delay_rows(rows: &mut Rows, r: &NetworkedReport) {
     }
 }
 
+/// The outages over the whole run (across sessions), and how many error windows hold one.
+fn outage_rows(rows: &mut Rows, r: &NetworkedReport) {
+    let o = &r.outages;
+    rows.row(
+        "outages (no measurement ≥ 100 ms), all sessions",
+        format!(
+            "{} · longest {:.0} ms · total {:.0} ms",
+            o.count, o.longest_ms, o.total_ms
+        ),
+    );
+    let marked = r
+        .experiment
+        .error_over_time
+        .iter()
+        .filter(|w| w.outage)
+        .count();
+    if marked > 0 {
+        rows.row(
+            "  1 s error windows with an outage in them",
+            format!("{marked} (marked \"outage\" in report.json)"),
+        );
+    }
+}
+
 /// A loop's period, lateness, work and tick counts, under the heading `period`.
 fn loop_rows(rows: &mut Rows, period: &str, t: &TimingReport) {
     rows.row(period, us(&t.period));
@@ -141,7 +166,7 @@ fn link_rows(rows: &mut Rows, l: &LinkReport, peer: &PeerFigures) {
         );
     }
     rows.row(
-        "  longest gap between accepted datagrams",
+        "  longest gap between accepted datagrams, in a session",
         format!("{:.1} ms", l.max_gap_ms),
     );
     rows.row(

@@ -4,16 +4,14 @@ use crate::haptic::LoopEnd;
 
 fn facts() -> RunFacts {
     RunFacts {
-        experiment: "networked".into(),
-        scene: "exp1".into(),
-        left_out: Vec::new(),
-        device: "scripted:hold".into(),
-        seed: 0,
-        set_delay_ms: None,
+        run: metrics::networked::NetworkedRun {
+            experiment: "networked".into(),
+            scene: "exp1".into(),
+            device: "scripted:hold".into(),
+            period_ns: 1_000_000,
+            ..Default::default()
+        },
         truth: None,
-        start_ns: 0,
-        period_ns: 1_000_000,
-        final_offset_ns: None,
         link: LinkReport::default(),
         measurements_overwritten: 0,
         timing: TimingReport::default(),
@@ -118,4 +116,63 @@ fn renderer_counters_are_reported() {
     assert_eq!(json["renderers"][0]["clipped_ticks"], 3);
     assert_eq!(json["renderers"][1]["unresolved_ticks"], 1);
     assert_eq!(json["safety"]["non_finite_velocity"]["episodes"], 0);
+}
+
+/// Before: after a 5.5 s telerobot outage the report said "longest gap 2.2 ms" (the gap was kept
+/// per session) and no figure gave the outage.
+#[test]
+fn an_outage_across_a_reconnect_is_counted_and_its_windows_marked() {
+    use metrics::networked::{MeasurementSample, TickSample};
+    let f = facts();
+    let spec = DeviceSpec::Scripted {
+        name: "hold".into(),
+    };
+    let device = open_device(&spec, &OpenOptions::default()).unwrap();
+    let end = LoopEnd {
+        force_record: *device.force_record(),
+        device,
+        safety: SafetyStats::default(),
+        node: Default::default(),
+        renderers: vec![],
+        ticks: 0,
+        frame: None,
+        parameters: None,
+        sessions: 2,
+    };
+    let mut rec = Recording::default();
+    // 10 s of ticks; measurements every ms but for 2.0 s to 7.5 s.
+    for k in 0..10_000u64 {
+        rec.ticks.push(TickSample {
+            index: k,
+            ..Default::default()
+        });
+        let t = f.run.start_ns + k as i64 * f.run.period_ns;
+        if !(2_000..7_500).contains(&k) {
+            rec.measurements.push(MeasurementSample {
+                command_sample_time_ns: t,
+                received_ns: t,
+                ..Default::default()
+            });
+        }
+    }
+    let (_, r) = build(&f, &rec, &end);
+    assert_eq!(r.outages.count, 1);
+    assert!(
+        (r.outages.longest_ms - 5_501.0).abs() < 1e-6,
+        "{:?}",
+        r.outages
+    );
+    let marked: Vec<f64> = r
+        .experiment
+        .error_over_time
+        .iter()
+        .filter(|w| w.outage)
+        .map(|w| w.t_s)
+        .collect();
+    assert_eq!(marked, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+    let t = table(&r, &PeerFigures::default());
+    assert_eq!(
+        value(&t, "outages (no measurement ≥ 100 ms), all sessions"),
+        "1 · longest 5501 ms · total 5501 ms"
+    );
 }

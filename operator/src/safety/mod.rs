@@ -245,6 +245,30 @@ impl SafetyLayer {
         }
     }
 
+    /// The rules acting at the last tick, one bit each in the order of
+    /// `record::schema::SafetyFlags::NAMES` (for the recording: no allocation, no copy of the
+    /// counters).
+    #[must_use]
+    pub fn active_bits(&self) -> u32 {
+        let s = &self.stats;
+        [
+            s.non_finite_force.active,
+            s.non_finite_position.active,
+            s.non_finite_velocity.active,
+            s.saturated.active,
+            s.rate_limited.active,
+            s.workspace.active,
+            s.loop_overrun.active,
+            s.stale_params.active,
+            s.watchdog_fading.active,
+            s.clutch.active,
+            self.passivity.stats().controlling.active,
+        ]
+        .iter()
+        .enumerate()
+        .fold(0, |bits, (i, on)| bits | (u32::from(*on) << i))
+    }
+
     /// The force limit in use [N].
     #[must_use]
     pub fn max_force_n(&self) -> f64 {

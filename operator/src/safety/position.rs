@@ -16,18 +16,23 @@ use mmt::vec3::{self, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PositionScale(f64);
 
-/// A scale that is zero, negative, NaN or infinite.
+/// A scale that is zero, negative, NaN, infinite or above [`PositionScale::MAX`].
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-#[error("invalid position scale {0}: expected a finite number > 0 (1 = one-to-one)")]
+#[error("invalid position scale {0}: expected a finite number > 0 and at most 20 (1 = one-to-one)")]
 pub struct InvalidScale(pub f64);
 
 impl PositionScale {
     /// One-to-one.
     pub const ONE: Self = Self(1.0);
 
-    /// Checks `factor`: finite and > 0.
+    /// The largest scale: a desk device's 10 cm workspace over a large arm's 2 m reach. Beyond
+    /// it a hand's tremor commands centimetres (and the telerobot's workspace box clamps the
+    /// rest: `node::guard`).
+    pub const MAX: f64 = 20.0;
+
+    /// Checks `factor`: finite, > 0 and at most [`Self::MAX`].
     pub fn new(factor: f64) -> Result<Self, InvalidScale> {
-        if factor.is_finite() && factor > 0.0 {
+        if factor.is_finite() && factor > 0.0 && factor <= Self::MAX {
             Ok(Self(factor))
         } else {
             Err(InvalidScale(factor))

@@ -428,7 +428,16 @@ fn scale_change_does_not_move_the_command() {
 fn scaling_rejects_zero_negative_nan_and_inf() {
     let mut s = fast();
     s.set_position_scale(2.0).unwrap();
-    for bad in [0.0, -0.0, -1.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+    for bad in [
+        0.0,
+        -0.0,
+        -1.0,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        20.01,
+        1e308,
+    ] {
         let e = s.set_position_scale(bad).unwrap_err();
         assert!(
             e.to_string().contains("expected a finite number > 0"),
@@ -441,8 +450,9 @@ fn scaling_rejects_zero_negative_nan_and_inf() {
         };
         assert!(SafetyLayer::new(&omega(), &cfg).is_err());
     }
-    assert_eq!(s.stats().scale_rejections, 6);
+    assert_eq!(s.stats().scale_rejections, 8);
     assert_eq!(s.position_map().scale().get(), 2.0, "old scale kept");
+    s.set_position_scale(PositionScale::MAX).unwrap();
 }
 
 #[test]

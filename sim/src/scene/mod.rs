@@ -1,6 +1,7 @@
 //! Scenes: what the world is and what the model needs (`DESIGN.md` §9). A scene is a TOML file
 //! under `scenes/`; [`Scene::from_toml`] parses it and validates every field, naming the field,
-//! the value and the allowed range on error.
+//! the value and the allowed range on error, then holds a simulated cloud to the real-time
+//! budget ([`Scene::cloud_budget`] says what that changed).
 //!
 //! ```toml
 //! name = "exp1"
@@ -18,7 +19,7 @@
 //! point_m = [0.0, 0.0, 0.0]   # a point of the contact surface (the object's top)
 //! normal = [0.0, 0.0, 1.0]    # outward normal, any orientation
 //! [cloud]
-//! source = "plane"            # plane | none
+//! source = "plane"            # plane | file | ros2 | none (see `cloud`)
 //! size_m = [0.3, 0.3]
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
@@ -39,11 +40,21 @@
 //! [sensors]
 //! preset = "franka-like"      # franka-like | arm-wrench | wrist-ft | clean
 //! force_sd_n = 0.05           # optional: any term of the preset, set on its own
+//! [limits]                    # optional, each key too (defaults: node::MotionLimits)
+//! workspace_min_m = [-0.25, -0.25, -0.25]
+//! workspace_max_m = [0.25, 0.25, 0.25]
+//! max_step_m = 0.001          # per tick
+//! max_speed_m_per_s = 1.0
+//! max_clock_jump_s = 10.0
 //! ```
 
+mod budget;
+mod cloud;
 mod settings;
 mod validate;
 
+pub use budget::CloudBudgetFit;
+pub use cloud::{CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS};
 pub use validate::SceneError;
 
 use crate::SensorNoise;
@@ -78,6 +89,30 @@ pub struct Scene {
     /// Loop rates.
     #[serde(default)]
     pub rates: Rates,
+    /// What the robot may be told to do (`node::MotionLimits`); each limit left out takes its
+    /// default around the surface point ([`Scene::motion_limits`]).
+    #[serde(default)]
+    pub limits: Option<LimitsSection>,
+    /// What the real-time budget did to the cloud at load ([`Scene::cloud_budget`]).
+    #[serde(skip)]
+    cloud_budget: Option<CloudBudgetFit>,
+}
+
+/// The robot's motion limits, each optional (`node::MotionLimits` gives the defaults and the
+/// ceilings).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsSection {
+    /// Lower corner of the workspace box, base frame [m]. Default: surface point − 0.25 m.
+    pub workspace_min_m: Option<[f64; 3]>,
+    /// Upper corner of the workspace box, base frame [m]. Default: surface point + 0.25 m.
+    pub workspace_max_m: Option<[f64; 3]>,
+    /// Largest commanded step per tick [m]. Default 0.001 (1 m/s at 1 kHz); at most 0.01.
+    pub max_step_m: Option<f64>,
+    /// Largest commanded speed [m/s]. Default 1; at most 2.
+    pub max_speed_m_per_s: Option<f64>,
+    /// Largest jump of a command's lag from the session's first [s]. Default 10; 0.1 to 60.
+    pub max_clock_jump_s: Option<f64>,
 }
 
 /// Ground truth of the simulated object (thesis set-up 1), keyed as the issue fixes them.
@@ -136,54 +171,6 @@ pub struct Surface {
     pub point_m: [f64; 3],
     /// Outward normal (normalised on validation).
     pub normal: [f64; 3],
-}
-
-/// Where the point cloud comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CloudSource {
-    /// `plane`: the object's contact face (large against the workspace); `none`: no cloud
-    /// (contact from the true geometry on the telerobot, remote contact on the operator).
-    pub source: CloudKind,
-    /// The camera's window on the face, along the surface's two tangents, centred on the tool
-    /// [m]. It must cover the tool's motion over a round trip: at 400 ms each way and 15 cm/s,
-    /// 12 cm.
-    pub size_m: [f64; 2],
-    /// Grid spacing [m]. Must be below `√2·(r1 + r2)/2` of the proxy.
-    pub spacing_m: f64,
-    /// Gaussian noise per coordinate [m].
-    pub noise_m: f64,
-    /// Fraction of points dropped per frame.
-    pub dropout: f64,
-    /// Camera rate [Hz].
-    pub rate_hz: f64,
-    /// The cloud follows the object as it slides (new frames each `1/rate_hz`). A static cloud is
-    /// sent once.
-    pub moving: bool,
-}
-
-impl Default for CloudSource {
-    fn default() -> Self {
-        CloudSource {
-            source: CloudKind::Plane,
-            size_m: [0.3, 0.3],
-            spacing_m: 0.0045,
-            noise_m: 0.0005,
-            dropout: 0.0,
-            rate_hz: 30.0,
-            moving: true,
-        }
-    }
-}
-
-/// Point-cloud source kind.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum CloudKind {
-    /// A noisy plane patch on the contact surface.
-    Plane,
-    /// No cloud.
-    None,
 }
 
 /// The model structure per axis and the estimation settings.
@@ -416,6 +403,9 @@ impl Scene {
             message: e.to_string(),
         })?;
         scene.validate().map_err(|e| e.with_origin(origin))?;
+        scene
+            .fit_cloud_budget(&mmt::contact::budget::CloudBudget::default())
+            .map_err(|e| e.with_origin(origin))?;
         let n = scene.surface.normal;
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         scene.surface.normal = n.map(|c| c / len);

@@ -4,7 +4,7 @@
 use mmt::estimator::EstimatorConfig;
 use mmt::model::Structure;
 use mmt::rls::ColumnScales;
-use node::{KnownSurface, TelerobotSettings, structure_to_wire};
+use node::{KnownSurface, MotionLimits, TelerobotSettings, structure_to_wire};
 use protocol::telerobot_to_operator::SceneSummary;
 
 use super::{CloudKind, Scene};
@@ -51,7 +51,24 @@ impl Scene {
                 point_m: self.surface.point_m,
                 normal: self.surface.normal,
             }),
+            limits: self.motion_limits(),
         }
+    }
+
+    /// The robot's motion limits: the scene's `[limits]`, each left out from
+    /// [`MotionLimits::around`] the surface point.
+    pub fn motion_limits(&self) -> MotionLimits {
+        let mut l = MotionLimits::around(self.surface.point_m);
+        if let Some(s) = &self.limits {
+            l.workspace_min_m = s.workspace_min_m.unwrap_or(l.workspace_min_m);
+            l.workspace_max_m = s.workspace_max_m.unwrap_or(l.workspace_max_m);
+            l.max_step_m = s.max_step_m.unwrap_or(l.max_step_m);
+            l.max_speed_m_per_s = s.max_speed_m_per_s.unwrap_or(l.max_speed_m_per_s);
+            if let Some(j) = s.max_clock_jump_s {
+                l.max_clock_jump_ns = (j * 1e9).round() as i64;
+            }
+        }
+        l
     }
 
     /// The `Welcome`'s summary of the scene: model structures, rates, the contact detector's

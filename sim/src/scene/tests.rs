@@ -221,3 +221,178 @@ fn every_noise_term_is_a_scene_field() {
         assert_eq!(SensorPreset::parse(p.name()), Some(p));
     }
 }
+
+/// The exp-1 scene with its `[cloud]` section replaced by `cloud`.
+fn with_cloud(cloud: &str) -> Result<Scene, SceneError> {
+    let start = EXP1_TOML.find("[cloud]").unwrap();
+    let end = start + EXP1_TOML[start..].find("\n[").unwrap() + 1;
+    let text = format!("{}{cloud}\n{}", &EXP1_TOML[..start], &EXP1_TOML[end..]);
+    Scene::from_toml(&text, "test.toml")
+}
+
+#[test]
+fn a_file_cloud_needs_a_path_and_a_rigid_pose() {
+    let s = with_cloud(
+        "[cloud]\nsource = \"file\"\npath = \"clouds/table.ply\"\nvoxel_m = 0.003\n\
+         max_points = 5000\nmoving = false\n\
+         pose = { translation_m = [0.5, 0.0, 0.2], quaternion_xyzw = [0.0, 0.0, 0.0, 1.0] }",
+    )
+    .unwrap();
+    let c = &s.cloud;
+    assert_eq!(c.source, CloudKind::File);
+    assert_eq!(c.path.as_deref(), Some("clouds/table.ply"));
+    assert_eq!(
+        (c.voxel_m, c.max_points, c.moving),
+        (Some(0.003), 5000, false)
+    );
+    assert_eq!(c.pose.pose().unwrap().translation_m, [0.5, 0.0, 0.2]);
+    // The plane's keys keep their defaults and are not checked for a file.
+    assert_eq!(c.rate_hz, 30.0);
+    for (cloud, message) in [
+        (
+            "[cloud]\nsource = \"file\"",
+            "cloud.path = None is out of range: expected a PLY or PCD file",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\n\
+             pose = { quaternion_xyzw = [0.0, 0.0, 0.0, 2.0] }",
+            "cloud.pose",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\nvoxel_m = 0.0",
+            "cloud.voxel_m = 0.0 is out of range",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npath = \"a.ply\"\nmax_points = 0",
+            "cloud.max_points = 0 is out of range",
+        ),
+        (
+            "[cloud]\nsource = \"ros2\"\ntopic = \"camera/points\"",
+            "cloud.topic = Some(\"camera/points\") is out of range: expected an absolute topic",
+        ),
+        (
+            "[cloud]\nsource = \"file\"\npathh = \"a.ply\"",
+            "unknown field `pathh`",
+        ),
+    ] {
+        let e = with_cloud(cloud).unwrap_err().to_string();
+        assert!(e.contains(message), "{cloud}: {e}");
+    }
+    let s = with_cloud("[cloud]\nsource = \"ros2\"\nstale_ms = 100.0").unwrap();
+    assert_eq!((s.cloud.source, s.cloud.stale_ms), (CloudKind::Ros2, 100.0));
+}
+
+#[test]
+fn motion_limits_default_around_the_surface_and_a_limits_section_is_checked() {
+    let exp1 = Scene::exp1();
+    let l = exp1.telerobot_settings().limits;
+    assert_eq!(l, node::MotionLimits::around(exp1.surface.point_m));
+    assert_eq!(l.validate(), Ok(()));
+    let text = |limits: &str| {
+        let base = include_str!("../../../scenes/exp1.toml");
+        format!("{base}\n[limits]\n{limits}\n")
+    };
+    let s = Scene::from_toml(
+        &text("max_speed_m_per_s = 0.3\nworkspace_max_m = [0.1, 0.1, 0.2]"),
+        "t.toml",
+    )
+    .unwrap();
+    let l = s.motion_limits();
+    assert_eq!(l.max_speed_m_per_s, 0.3);
+    assert_eq!(l.workspace_max_m, [0.1, 0.1, 0.2]);
+    assert_eq!(l.workspace_min_m, [-0.25; 3]);
+    for (limits, field) in [
+        ("max_step_m = 1.0", "limits.max_step_m = 1"),
+        ("max_speed_m_per_s = 1e308", "limits.max_speed_m_per_s"),
+        ("max_clock_jump_s = 0", "limits.max_clock_jump_s"),
+        ("workspace_max_m = [-0.3, 0.1, 0.1]", "axis 0"),
+        // A box that leaves out the surface point, where the tool starts.
+        (
+            "workspace_min_m = [0.1, 0.1, 0.1]",
+            "containing surface.point_m",
+        ),
+        ("bogus = 1", "unknown field"),
+    ] {
+        let e = Scene::from_toml(&text(limits), "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.toml") && e.contains(field),
+            "{limits}: {e}"
+        );
+    }
+}
+
+/// Issue 11, finding 5: the exp-1 window at 0.113 mm (4.9 M points, over half a million in the
+/// proxy's query ball) and at 0.25 mm (1 M points) passed validation and stalled both loops.
+/// They are now downsampled at load, with a warning that names the cloud, its size, the spacing
+/// used and the resulting size.
+#[test]
+fn a_plane_over_the_budget_is_downsampled_with_a_warning() {
+    use mmt::contact::budget::{CloudBudget, OverBudget};
+    let b = CloudBudget::default();
+    for spacing in ["0.000113", "0.00025"] {
+        let s = with_cloud(&format!(
+            "[cloud]\nsource = \"plane\"\nsize_m = [0.25, 0.25]\nspacing_m = {spacing}\n\
+             noise_m = 0.0005\nrate_hz = 30.0\nmoving = true"
+        ))
+        .unwrap();
+        let fit = s.cloud_budget().expect("the budget acted");
+        assert!(matches!(fit.reason, OverBudget::Step { .. }), "{fit}");
+        assert!(fit.before.points >= 1_000_000, "{}", fit.before.points);
+        assert_eq!(s.cloud.spacing_m, fit.spacing_to_m);
+        let proxy = s.proxy.config(s.rates.control_hz);
+        assert!(fit.after.points_in_ball <= b.max_points_in_ball(&proxy));
+        assert!(fit.after.points <= b.max_points(Some(30.0)));
+        assert!(s.cloud.spacing_m < proxy.max_point_spacing_m());
+        let text = fit.to_string();
+        for part in [
+            &format!("spacing_m = {spacing}"),
+            "points per frame",
+            "over the real-time budget",
+            "downsampled to spacing_m = 0.00",
+            "in the query ball",
+        ] {
+            assert!(text.contains(part), "{part:?} not in {text}");
+        }
+    }
+    // The shipped scenes fit as written.
+    assert!(Scene::exp1().cloud_budget().is_none());
+    assert!(Scene::wall().cloud_budget().is_none());
+    assert_eq!(Scene::exp1().cloud.spacing_m, 0.0045);
+}
+
+#[test]
+fn a_plane_that_cannot_fit_without_slipping_is_refused() {
+    // r3 = 0.3 m over a 1 m window: a query ball of 0.46 m holds ~34,000 points even at
+    // 4.5 mm, and no grid the proxy cannot slip through brings it in.
+    let text = EXP1_TOML
+        .replace("r3_m = 0.03 ", "r3_m = 0.3 ")
+        .replace("size_m = [0.25, 0.25]", "size_m = [1.0, 1.0]");
+    assert!(text.contains("r3_m = 0.3 ") && text.contains("size_m = [1.0, 1.0]"));
+    let e = Scene::from_toml(&text, "wide.toml").unwrap_err();
+    let m = e.to_string();
+    for part in [
+        "wide.toml: [cloud] spacing_m = 0.0045 is over the real-time budget at 1000 Hz",
+        "query radius",
+        "the proxy slips through",
+    ] {
+        assert!(m.contains(part), "{part:?} not in {m}");
+    }
+    // A static window is indexed once: 40,000 points are kept as they are; a window moving at
+    // 100 Hz is held to what can be indexed at that rate.
+    let s = with_cloud(
+        "[cloud]\nsource = \"plane\"\nsize_m = [0.9, 0.9]\nspacing_m = 0.0045\nmoving = false",
+    )
+    .unwrap();
+    assert!(s.cloud_budget().is_none());
+    let s = with_cloud(
+        "[cloud]\nsource = \"plane\"\nsize_m = [0.6, 0.6]\nspacing_m = 0.0045\nmoving = true\nrate_hz = 100.0",
+    )
+    .unwrap();
+    let fit = s.cloud_budget().expect("18,000 points at 100 Hz is over");
+    assert!(
+        matches!(fit.reason, mmt::contact::budget::OverBudget::Frame { .. }),
+        "{fit}"
+    );
+}

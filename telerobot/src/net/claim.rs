@@ -12,12 +12,13 @@ use rustls_pki_types::CertificateDer;
 use tokio::sync::Notify;
 use transport::CloseCode;
 
-use super::slot::{ClaimError, Claimed, Contender, Grant, Released, Replace, Slot, Ticket};
+use super::slot::{ClaimError, Claimed, Contender, Grant, Reason, Released, Replace, Slot, Ticket};
 
 /// A handle on an operator's connection that can be told it was replaced.
 pub(super) trait Replaceable: Clone {
-    /// Closes this connection because `newer`, of the same operator, takes over.
-    fn replaced_by(&self, newer: &Self, operator: &str);
+    /// Closes this connection because `newer` takes over, for `why` (the same operator again,
+    /// or this one silent past the silence limit).
+    fn replaced_by(&self, newer: &Self, operator: &str, why: Reason);
 }
 
 /// The slot shared by every connection task, and the bell its releases ring.
@@ -39,29 +40,35 @@ pub(super) struct Control<B, C: Replaceable> {
 }
 
 impl<B, C: Replaceable> Claims<B, C> {
-    /// A free slot holding `bells`; a takeover waits at most `takeover_wait`.
-    pub(super) fn new(bells: B, takeover_wait: Duration) -> Arc<Claims<B, C>> {
+    /// A free slot holding `bells`; a takeover waits at most `takeover_wait`; a holder silent
+    /// for `silence_limit` is replaced by any contender ([`Slot::new`]).
+    pub(super) fn new(
+        bells: B,
+        takeover_wait: Duration,
+        silence_limit: Duration,
+    ) -> Arc<Claims<B, C>> {
         Arc::new(Claims {
-            slot: Mutex::new(Slot::new(bells, takeover_wait)),
+            slot: Mutex::new(Slot::new(bells, takeover_wait, silence_limit)),
             handed_over: Notify::new(),
             origin: tokio::time::Instant::now(),
         })
     }
 
     /// Takes the slot for `contender`, or says why not ([`Slot::claim`]). If the contender is
-    /// the operator in control again, its old connection is closed and this waits (at most the
-    /// takeover wait) for the old session to end.
+    /// the operator in control again, or the one in control has been silent past the silence
+    /// limit, the old connection is closed and this waits (at most the takeover wait) for the
+    /// old session to end.
     pub(super) async fn claim(
         self: &Arc<Self>,
         contender: Contender<C>,
     ) -> Result<Control<B, C>, ClaimError> {
         let newer = contender.connection.clone();
         let name = contender.name.clone();
-        let (ticket, old) = match self.lock().claim(contender, self.now_ns())? {
+        let (ticket, old, why) = match self.lock().claim(contender, self.now_ns())? {
             Claimed::Granted(grant) => return Ok(self.control(grant)),
-            Claimed::Replacing { ticket, old, .. } => (ticket, old),
+            Claimed::Replacing { ticket, old, why } => (ticket, old, why),
         };
-        old.replaced_by(&newer, &name);
+        old.replaced_by(&newer, &name, why);
         let mut waiting = Waiting {
             claims: self,
             ticket: Some(ticket),
@@ -108,6 +115,31 @@ impl<B, C: Replaceable> Control<B, C> {
     pub(super) fn bells(&mut self) -> Option<&mut B> {
         self.grant.as_mut().map(|grant| &mut grant.bells)
     }
+
+    /// A handle the session tells when it hears from its operator ([`Slot::heard`]); `None`
+    /// only while the guard is being dropped.
+    pub(super) fn liveness(&self) -> Option<Liveness<B, C>> {
+        let grant = self.grant.as_ref()?;
+        Some(Liveness {
+            claims: Arc::clone(&self.claims),
+            ticket: grant.ticket(),
+        })
+    }
+}
+
+/// Tells the slot that the session holding it heard from its operator.
+#[derive(Debug)]
+pub(super) struct Liveness<B, C> {
+    claims: Arc<Claims<B, C>>,
+    ticket: Ticket,
+}
+
+impl<B, C: Replaceable> Liveness<B, C> {
+    /// The session heard from its operator just now.
+    pub(super) fn heard(&self) {
+        let now_ns = self.claims.now_ns();
+        self.claims.lock().heard(self.ticket, now_ns);
+    }
 }
 
 impl<B, C: Replaceable> Drop for Control<B, C> {
@@ -142,17 +174,22 @@ impl<B, C: Replaceable> Drop for Waiting<'_, B, C> {
 }
 
 impl Replaceable for quinn::Connection {
-    fn replaced_by(&self, newer: &Self, operator: &str) {
-        tracing::info!(
-            old = %self.remote_address(),
-            new = %newer.remote_address(),
-            operator,
-            "the operator in control connected again: replacing its old connection"
-        );
-        self.close(
-            CloseCode::Replaced.code(),
-            b"replaced by a newer connection with the same certificate",
-        );
+    fn replaced_by(&self, newer: &Self, operator: &str, why: Reason) {
+        let (old, new) = (self.remote_address(), newer.remote_address());
+        let reason = match why {
+            Reason::Restarted => {
+                tracing::info!(%old, %new, operator,
+                    "the operator in control connected again: replacing its old connection");
+                "replaced by a newer connection with the same certificate".to_owned()
+            }
+            Reason::Silent { silent } => {
+                tracing::warn!(%old, %new, operator, ?silent,
+                    "nothing heard from the operator in control for {silent:?}: \
+                     taking its connection as dead and giving control to another");
+                format!("nothing heard for {silent:?}: control given to another operator")
+            }
+        };
+        self.close(CloseCode::Replaced.code(), reason.as_bytes());
     }
 }
 
@@ -198,7 +235,7 @@ mod tests {
     }
 
     impl Replaceable for Fake {
-        fn replaced_by(&self, newer: &Self, _operator: &str) {
+        fn replaced_by(&self, newer: &Self, _operator: &str, _why: Reason) {
             *self
                 .replaced_by
                 .lock()
@@ -215,7 +252,7 @@ mod tests {
     }
 
     fn claims() -> Arc<Claims<&'static str, Fake>> {
-        Claims::new("bells", TAKEOVER_WAIT)
+        Claims::new("bells", TAKEOVER_WAIT, Duration::from_secs(1))
     }
 
     #[tokio::test(start_paused = true)]

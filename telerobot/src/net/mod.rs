@@ -9,7 +9,10 @@
 //!   refused connection is then closed with [`transport::CloseCode::Refused`] and the reason.
 //!   A connection presenting the certificate of the operator in control is that operator again
 //!   (its app restarted before the old connection timed out): it takes over, and the old
-//!   connection is closed with [`transport::CloseCode::Replaced`]. The rule is a state machine
+//!   connection is closed with [`transport::CloseCode::Replaced`]. So does any trusted operator
+//!   when nothing (no datagram, no keep-alive) was heard from the one in control for the
+//!   silence limit (max(1 s, 2 × keep-alive, 2 × expected RTT)): a killed operator app sends no
+//!   CONNECTION_CLOSE, and its slot must not wait for quinn's 5 s idle timeout. The rule is a state machine
 //!   (`slot`, no I/O, tested transition by transition); `claim` is its async shell.
 //! - In a session: `Command` datagrams (the newest of their direction, or reordered ones, which
 //!   the node's playout buffer still orders) go to the loop's command queue stamped with their
@@ -50,6 +53,9 @@ pub struct NetConfig {
     pub identity: Identity,
     /// Operator certificates allowed to connect (exact DER match).
     pub trusted_operators: Vec<CertificateDer<'static>>,
+    /// Where each trusted certificate came from (a file name), in the same order; may be empty.
+    /// With the certificate's fingerprint it names the operator in control to a refused one.
+    pub trusted_labels: Vec<String>,
     /// What the operator must render; sent in the `Welcome`.
     pub scene: SceneSummary,
     /// quinn settings ([`LinkTuning::default`] for the rig).
@@ -74,6 +80,7 @@ impl NetConfig {
             listen,
             identity,
             trusted_operators,
+            trusted_labels: Vec::new(),
             scene,
             tuning: LinkTuning::default(),
             handshake_timeout: Duration::from_secs(10),
@@ -146,6 +153,8 @@ type Claims = claim::Claims<Bells, quinn::Connection>;
 
 /// What every connection task shares.
 struct Context {
+    /// Trusted certificates (DER) and where each came from.
+    trusted: Vec<(Vec<u8>, String)>,
     shared: Arc<link::Shared>,
     claims: Arc<Claims>,
     scene: SceneSummary,
@@ -172,7 +181,18 @@ impl Server {
     /// Accepts operators until `shutdown` completes, then closes every connection
     /// ([`CloseCode::Shutdown`]) and waits (≤ 1 s) for the peers to be told.
     pub async fn serve(self, io: NetIo, shutdown: impl Future<Output = ()>) {
+        let trusted = self
+            .config
+            .trusted_operators
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let label = self.config.trusted_labels.get(i).cloned();
+                (c.to_vec(), label.unwrap_or_default())
+            })
+            .collect();
         let context = Arc::new(Context {
+            trusted,
             shared: io.shared,
             claims: Claims::new(
                 Bells {
@@ -180,6 +200,7 @@ impl Server {
                     clouds: io.cloud_bell,
                 },
                 slot::TAKEOVER_WAIT,
+                slot::silence_limit(&self.config.tuning),
             ),
             scene: self.config.scene.clone(),
             handshake_timeout: self.config.handshake_timeout,

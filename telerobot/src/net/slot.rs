@@ -9,13 +9,17 @@
 //!   ([`ClaimError::Busy`]) — unless the contender presents the holder's own certificate (exact
 //!   DER): that is the operator in control again (its app restarted before the old connection
 //!   timed out), and it takes over: the caller closes the old connection and waits, at most
-//!   the takeover wait, for the old session to release.
+//!   the takeover wait, for the old session to release. A holder the telerobot has not heard
+//!   from (no packet at all, keep-alives included) for the silence limit is dead — killed, or
+//!   cut off — and any trusted contender takes over from it the same way: the slot is freed as
+//!   soon as someone needs it, not when quinn's idle timeout (5 s) ends the dead connection.
 //! - [`Slot::replace`]: asked by the waiting contender each time it wakes: granted once the old
 //!   holder has released, still waiting before the deadline, [`ClaimError::TakeoverTimedOut`]
 //!   after it.
 //! - [`Slot::release`]: the holder gives the slot back with its doorbells; if a takeover is
 //!   waiting the slot passes straight to the newcomer (no third connection can slip in between).
 //! - [`Slot::withdraw`]: a waiting contender gives up (its task was cancelled).
+//! - [`Slot::heard`]: the holder's session says it heard from its operator at `now_ns`.
 //!
 //! Operators are named to others by [`Contender::name`]; which name that is (today the
 //! `operator_name` of the `Hello`) is the caller's choice.
@@ -27,12 +31,34 @@ use std::time::Duration;
 /// this only bounds a session that does not end.
 pub(crate) const TAKEOVER_WAIT: Duration = Duration::from_secs(2);
 
+/// How long the holder may be silent before another operator may take the slot over: the
+/// longest of 1 s, two keep-alive intervals and two expected round trips.
+///
+/// Why: an operator in a session sends 1 kHz datagrams, and quinn sends a keep-alive after
+/// `keep_alive` (500 ms) of sending nothing, so a live operator is heard from many times a
+/// second; 1 s of silence on a 20 ms link is a dead app (SIGKILL: no CONNECTION_CLOSE) or a cut
+/// link. Two keep-alive intervals allow one lost keep-alive; two round trips allow the jitter
+/// and retransmissions of a long link (2000 ms each way: 8 s, above the idle timeout, which then
+/// ends the connection first). An operator that is alive but cut off for longer loses control
+/// only if another trusted operator asks for it meanwhile; the robot was held still anyway
+/// (commands older than 50 ms hold it).
+pub(crate) fn silence_limit(tuning: &transport::LinkTuning) -> Duration {
+    let rtt = tuning
+        .expected_one_way_delay
+        .saturating_mul(2)
+        .saturating_add(Duration::from_millis(10));
+    Duration::from_secs(1)
+        .max(tuning.keep_alive.saturating_mul(2))
+        .max(rtt.saturating_mul(2))
+}
+
 /// The controlling-operator slot. `B`: the doorbells handed to the session in control; `C`: a
 /// handle on an operator's connection (returned to the caller to close when it is replaced).
 #[derive(Debug)]
 pub(crate) struct Slot<B, C> {
     state: State<B, C>,
     takeover_wait: Duration,
+    silence_limit_ns: i64,
     next_ticket: u64,
 }
 
@@ -59,18 +85,40 @@ pub(crate) struct Grant<B> {
     pub(crate) bells: B,
 }
 
+impl<B> Grant<B> {
+    /// The ticket the slot is held with.
+    pub(crate) fn ticket(&self) -> Ticket {
+        self.ticket
+    }
+}
+
 /// What a successful [`Slot::claim`] says.
 #[derive(Debug)]
 pub(crate) enum Claimed<B, C> {
     /// The slot was free: in control now.
     Granted(Grant<B>),
-    /// The operator in control connected again. Close `old`, then ask [`Slot::replace`] with
-    /// `ticket` until it answers (it says how long to wait for the old session's release).
+    /// The operator in control connected again, or has been silent past the silence limit.
+    /// Close `old`, then ask [`Slot::replace`] with `ticket` until it answers (it says how long
+    /// to wait for the old session's release).
     Replacing {
         /// The contender's ticket.
         ticket: Ticket,
         /// The connection being replaced.
         old: C,
+        /// Why it is replaced.
+        why: Reason,
+    },
+}
+
+/// Why a holder is replaced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Reason {
+    /// The contender presented the holder's own certificate: its app restarted.
+    Restarted,
+    /// Nothing was heard from the holder for `silent` (at least the silence limit).
+    Silent {
+        /// Since the holder was last heard from.
+        silent: Duration,
     },
 }
 
@@ -160,6 +208,8 @@ enum State<B, C> {
 struct Holder<C> {
     ticket: Ticket,
     contender: Contender<C>,
+    /// When its session last heard from it (claimed, or [`Slot::heard`]) \[ns\].
+    heard_ns: i64,
 }
 
 #[derive(Debug)]
@@ -169,11 +219,13 @@ struct Takeover<C> {
 }
 
 impl<B, C: Clone> Slot<B, C> {
-    /// A free slot holding `bells`; a takeover waits at most `takeover_wait` ([`TAKEOVER_WAIT`]).
-    pub(crate) fn new(bells: B, takeover_wait: Duration) -> Slot<B, C> {
+    /// A free slot holding `bells`; a takeover waits at most `takeover_wait` ([`TAKEOVER_WAIT`]);
+    /// a holder silent for `silence_limit` ([`silence_limit`]) is replaced by any contender.
+    pub(crate) fn new(bells: B, takeover_wait: Duration, silence_limit: Duration) -> Slot<B, C> {
         Slot {
             state: State::Free(bells),
             takeover_wait,
+            silence_limit_ns: nanos(silence_limit),
             next_ticket: 0,
         }
     }
@@ -187,10 +239,16 @@ impl<B, C: Clone> Slot<B, C> {
         self.next_ticket += 1;
         let ticket = Ticket(self.next_ticket);
         let wait_ns = nanos(self.takeover_wait);
+        let silence_limit_ns = self.silence_limit_ns;
+        let newcomer = |contender| Holder {
+            ticket,
+            contender,
+            heard_ns: now_ns,
+        };
         self.step(|state| match state {
             State::Free(bells) => (
                 State::Held {
-                    holder: Holder { ticket, contender },
+                    holder: newcomer(contender),
                     takeover: None,
                 },
                 Ok(Claimed::Granted(Grant { ticket, bells })),
@@ -198,14 +256,19 @@ impl<B, C: Clone> Slot<B, C> {
             State::Held {
                 holder,
                 takeover: None,
-            } if holder.same_certificate(&contender) => {
+            } if holder
+                .replaceable_by(&contender, now_ns, silence_limit_ns)
+                .is_some() =>
+            {
+                let why = holder.replaceable_by(&contender, now_ns, silence_limit_ns);
+                let why = why.unwrap_or(Reason::Restarted);
                 let until_ns = now_ns.saturating_add(wait_ns);
                 let old = holder.contender.connection.clone();
                 let takeover = Takeover {
-                    newcomer: Holder { ticket, contender },
+                    newcomer: newcomer(contender),
                     until_ns,
                 };
-                let claimed = Claimed::Replacing { ticket, old };
+                let claimed = Claimed::Replacing { ticket, old, why };
                 (
                     State::Held {
                         holder,
@@ -303,6 +366,16 @@ impl<B, C: Clone> Slot<B, C> {
         });
     }
 
+    /// The session holding `ticket` heard from its operator at `now_ns` (a packet of any kind).
+    /// Anything but the holder's ticket changes nothing.
+    pub(crate) fn heard(&mut self, ticket: Ticket, now_ns: i64) {
+        if let State::Held { holder, .. } = &mut self.state
+            && holder.ticket == ticket
+        {
+            holder.heard_ns = holder.heard_ns.max(now_ns);
+        }
+    }
+
     /// Moves the state out, computes the next one and puts it back.
     fn step<R>(&mut self, transition: impl FnOnce(State<B, C>) -> (State<B, C>, R)) -> R {
         let (next, out) = transition(std::mem::replace(&mut self.state, State::Vacant));
@@ -329,6 +402,24 @@ impl<B, C> State<B, C> {
 }
 
 impl<C> Holder<C> {
+    /// Whether, and why, `contender` may take the slot over from this holder at `now_ns`.
+    fn replaceable_by(
+        &self,
+        contender: &Contender<C>,
+        now_ns: i64,
+        silence_limit_ns: i64,
+    ) -> Option<Reason> {
+        let silent_ns = now_ns.saturating_sub(self.heard_ns);
+        if self.same_certificate(contender) {
+            Some(Reason::Restarted)
+        } else if silent_ns >= silence_limit_ns {
+            let silent = Duration::from_nanos(silent_ns.unsigned_abs());
+            Some(Reason::Silent { silent })
+        } else {
+            None
+        }
+    }
+
     /// Whether `contender` presented this holder's certificate (exact DER; none matches none).
     fn same_certificate(&self, contender: &Contender<C>) -> bool {
         contender.certificate.is_some() && contender.certificate == self.contender.certificate

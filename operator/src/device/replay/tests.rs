@@ -1,4 +1,5 @@
 use super::*;
+use std::path::PathBuf;
 
 fn parse(text: &str) -> Result<ReplayTrajectory, ReplayError> {
     ReplayTrajectory::parse(text, "run.csv")
@@ -157,4 +158,75 @@ fn writer_refuses_non_finite() {
         clutch: false,
     };
     assert!(w.write(0.0, &bad).is_err());
+}
+
+/// Writes a recording of `kind` holding `ticks` (the recorder's own writer and file format).
+fn recording(name: &str, kind: record::Kind, ticks: &[record::schema::OperatorTick]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("replay-mcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    let recorder = record::Recorder::start(record::RecorderConfig {
+        mcap: Some(path.clone()),
+        live: None,
+        kind,
+        clock_origin_ns: 0,
+    })
+    .unwrap();
+    let sink = recorder.sink();
+    for t in ticks {
+        assert!(sink.send_waiting(vec![record::Timed {
+            t_ns: t.sample_time_ns,
+            message: record::Message::OperatorTick(Box::new(*t)),
+        }]));
+    }
+    recorder.finish().unwrap();
+    path
+}
+
+#[test]
+fn replays_the_device_trajectory_of_a_recording() {
+    let tick = |k: u64| record::schema::OperatorTick {
+        index: k,
+        sample_time_ns: 5_000_000_000 + k as i64 * 1_000_000,
+        device_position_m: [k as f64 * 1e-3, -(k as f64) * 2e-3, 0.1],
+        device_velocity_m_per_s: [1.0, -2.0, 0.0],
+        // What the device was commanded is not what it measured: the replay takes the latter.
+        command_position_m: [9.0; 3],
+        ..Default::default()
+    };
+    let ticks: Vec<_> = (0..200).map(tick).collect();
+    let path = recording("op.mcap", record::Kind::Operator, &ticks);
+    let r = ReplayTrajectory::from_recording(&path).unwrap();
+    assert_eq!(r.len(), 200);
+    assert_eq!(r.name(), "op.mcap");
+    // Timed from the first tick.
+    assert_eq!(r.duration_s(), Some(0.199));
+    let s = r.sample(0.1);
+    assert!((s.position_m[0] - 0.1).abs() < 1e-12, "{:?}", s.position_m);
+    assert!((s.position_m[1] + 0.2).abs() < 1e-12, "{:?}", s.position_m);
+    assert_eq!(s.velocity_m_per_s, [1.0, -2.0, 0.0]);
+    // Through the device spec, as `--device replay:FILE.mcap` opens it.
+    let spec: crate::device::DeviceSpec = format!("replay:{}", path.display()).parse().unwrap();
+    assert!(crate::device::open_device(&spec, &crate::device::OpenOptions::default()).is_ok());
+}
+
+#[test]
+fn refuses_recordings_without_haptic_ticks_saying_what_they_are() {
+    let path = recording("tr.mcap", record::Kind::Telerobot, &[]);
+    let e = ReplayTrajectory::from_recording(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("telerobot"), "{e}");
+    assert!(e.contains("replay:FILE.mcap needs"), "{e}");
+    let empty = recording("empty.mcap", record::Kind::Operator, &[]);
+    let e = ReplayTrajectory::from_recording(&empty)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no haptic tick"), "{e}");
+    let csv = std::env::temp_dir().join(format!("replay-mcap-{}-x.mcap", std::process::id()));
+    std::fs::write(&csv, "t_s,x,y,z\n0,0,0,0\n").unwrap();
+    let e = ReplayTrajectory::from_recording(&csv)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&csv.display().to_string()), "{e}");
 }

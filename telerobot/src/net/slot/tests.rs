@@ -7,8 +7,12 @@ type TestSlot = Slot<&'static str, &'static str>;
 
 const WAIT_NS: i64 = 2_000_000_000;
 
+/// The silence limit of these tests.
+const SILENCE: Duration = Duration::from_secs(1);
+const SILENCE_NS: i64 = 1_000_000_000;
+
 fn slot() -> TestSlot {
-    Slot::new("bells", TAKEOVER_WAIT)
+    Slot::new("bells", TAKEOVER_WAIT, SILENCE)
 }
 
 /// Alice's certificate is `A`, Bob's `B`; `connection` labels the connection.
@@ -50,7 +54,11 @@ fn takeover(now_ns: i64) -> (TestSlot, Grant<&'static str>, Ticket, i64) {
     let mut slot = slot();
     let old = grant(&mut slot, alice("a1"));
     let ticket = match slot.claim(alice("a2"), now_ns) {
-        Ok(Claimed::Replacing { ticket, old: "a1" }) => ticket,
+        Ok(Claimed::Replacing {
+            ticket,
+            old: "a1",
+            why: Reason::Restarted,
+        }) => ticket,
         other => panic!("expected a takeover closing a1, got {other:?}"),
     };
     match slot.replace(ticket, now_ns) {
@@ -233,7 +241,7 @@ fn a_grant_that_does_not_hold_the_slot_is_handed_back() {
     let mut slot = slot();
     let _alice = grant(&mut slot, alice("a1"));
     // A grant of another slot, for a ticket this one never gave.
-    let mut other = Slot::new("other bells", TAKEOVER_WAIT);
+    let mut other = Slot::new("other bells", TAKEOVER_WAIT, SILENCE);
     let first = grant(&mut other, bob());
     assert!(other.release(first).is_ok());
     let stranger = grant(&mut other, bob());
@@ -252,4 +260,73 @@ fn a_stale_ticket_does_not_touch_a_later_holder() {
     slot.withdraw(stale);
     assert_eq!(slot.replace(stale, 0).unwrap_err(), ClaimError::NotWaiting);
     assert_eq!(holder(&slot), Some("bob"));
+}
+
+/// Issue 11: after the operator in control died (SIGKILL: no CONNECTION_CLOSE), another trusted
+/// operator was refused as busy until quinn's idle timeout (5 s) ended the dead connection.
+#[test]
+fn a_holder_silent_for_the_limit_is_replaced_by_another_operator() {
+    let mut slot = slot();
+    let old = grant(&mut slot, alice("a1"));
+    // Heard from at 0.5 s; at 1.5 s − 1 ns it has been silent just under the limit.
+    slot.heard(old.ticket, SILENCE_NS / 2);
+    let just_under = slot.claim(bob(), SILENCE_NS / 2 + SILENCE_NS - 1);
+    assert_eq!(just_under.unwrap_err(), busy("alice"));
+    let at_limit = SILENCE_NS / 2 + SILENCE_NS;
+    let ticket = match slot.claim(bob(), at_limit) {
+        Ok(Claimed::Replacing {
+            ticket,
+            old: "a1",
+            why: Reason::Silent { silent },
+        }) => {
+            assert_eq!(silent, SILENCE);
+            ticket
+        }
+        other => panic!("expected bob to replace the silent a1, got {other:?}"),
+    };
+    // While the dead session ends, others are refused, naming the holder.
+    assert_eq!(
+        refusal(&mut slot, contender("carol", b"C", "c1")),
+        busy("alice")
+    );
+    assert_eq!(slot.release(old).ok(), Some(Released::HandedOver));
+    let granted = slot.replace(ticket, at_limit + 1);
+    assert!(matches!(granted, Ok(Replace::Granted(_))), "{granted:?}");
+    assert_eq!(holder(&slot), Some("bob"));
+}
+
+#[test]
+fn hearing_from_the_holder_keeps_it_in_control() {
+    let mut slot = slot();
+    let alice = grant(&mut slot, alice("a1"));
+    for t in 1..=10 {
+        slot.heard(alice.ticket, t * SILENCE_NS / 2);
+        let now = t * SILENCE_NS / 2 + SILENCE_NS - 1;
+        assert_eq!(slot.claim(bob(), now).unwrap_err(), busy("alice"), "{t}");
+    }
+    // A stale (or older) report does not move the time back, and another ticket's is ignored.
+    slot.heard(alice.ticket, 0);
+    slot.heard(Ticket(999), 100 * SILENCE_NS);
+    let now = 5 * SILENCE_NS + SILENCE_NS - 1;
+    assert_eq!(slot.claim(bob(), now).unwrap_err(), busy("alice"));
+    assert!(matches!(
+        slot.claim(bob(), 6 * SILENCE_NS),
+        Ok(Claimed::Replacing { .. })
+    ));
+}
+
+#[test]
+fn the_silence_limit_follows_the_link() {
+    let delay =
+        |ms: f64| silence_limit(&transport::LinkTuning::with_expected_delay_ms(ms).unwrap());
+    assert_eq!(delay(0.0), Duration::from_secs(1));
+    assert_eq!(delay(20.0), Duration::from_secs(1));
+    // 400 ms each way: two round trips of 810 ms.
+    assert_eq!(delay(400.0), Duration::from_millis(1620));
+    assert_eq!(delay(2000.0), Duration::from_millis(8020));
+    let slow_keep_alive = transport::LinkTuning {
+        keep_alive: Duration::from_millis(900),
+        ..transport::LinkTuning::default()
+    };
+    assert_eq!(silence_limit(&slow_keep_alive), Duration::from_millis(1800));
 }

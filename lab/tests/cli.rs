@@ -1,0 +1,45 @@
+//! The `mmt` binary's handling of a user's mistakes.
+
+#![allow(clippy::unwrap_used)]
+
+use std::process::Command;
+
+/// A scene path that is a directory: one message naming the path and the OS's reason once, exit
+/// status 1, and no backtrace even with `RUST_BACKTRACE` set (`main` returned the error to the
+/// runtime, which printed its Debug form with a stack trace).
+#[test]
+fn a_bad_path_prints_one_message_and_no_backtrace() {
+    let dir = std::env::temp_dir();
+    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", "exp1", "--seconds", "1", "--scene"])
+        .arg(&dir)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains("backtrace"), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains(&*dir.to_string_lossy()), "{stderr}");
+    assert_eq!(stderr.matches("os error 21").count(), 1, "{stderr}");
+}
+
+/// A run refused for its settings leaves no recording behind (it left a 405-byte file).
+#[test]
+fn a_refused_run_writes_no_recording() {
+    let file = std::env::temp_dir().join(format!("mmt-refused-{}.mcap", std::process::id()));
+    let _ = std::fs::remove_file(&file);
+    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", "exp1", "--seconds", "0.05", "--record"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("seconds = 0.05 is out of range"),
+        "{stderr}"
+    );
+    assert!(!file.exists(), "{} was written", file.display());
+    assert!(!file.with_extension("mcap.partial").exists());
+}

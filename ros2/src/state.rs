@@ -1,0 +1,404 @@
+//! Robot state from three topics: pose, twist and wrench → one [`StateSample`] per pose, timed
+//! by its header stamp. Pure (no DDS, no clock): the I/O thread feeds it messages with their
+//! receipt times.
+//!
+//! # Conventions (the one place they are stated)
+//!
+//! - **Frames.** Positions, velocities and forces are in the robot's base frame: the pose's
+//!   `header.frame_id` (e.g. `fr3_link0`). A twist is taken as the tool's linear velocity in that
+//!   frame; a wrench either in that frame ([`WrenchFrame::Base`], the default: franka_ros2's
+//!   `O_F_ext_hat_K`) or in the tool's frame ([`WrenchFrame::Tool`], rotated into the base frame
+//!   by the same stamp's pose orientation).
+//! - **Sign.** The wrench is **the force the environment exerts on the tool**
+//!   ([`WrenchSign::OnTool`], the default; franka's external-force estimate is of this kind) —
+//!   the sign of `node::RobotSample::force_on_tool_n` and of `mmt::model`'s regression
+//!   (`y = −F_op`). A sensor that reports the force the tool exerts on the environment is
+//!   declared [`WrenchSign::ByTool`] and negated here. Pressing down on a table (+z up) gives a
+//!   force on the tool of +z.
+//! - **Pairing.** A pose is completed by the wrench (and twist) of the same stamp: the sample is
+//!   emitted as soon as every stream has reached the pose's stamp; a pose overtaken by the next
+//!   one is emitted with the nearest samples within [`StateConfig::pair_tolerance_ns`], or
+//!   refused as unpaired.
+//! - **No twist.** Without a twist topic the velocity is the backward difference of consecutive
+//!   accepted poses over their stamps (the first sample has velocity 0).
+//!
+//! # Refusals (each counted in [`StateCounts`])
+//! - a stamp with `nanosec ≥ 1e9` (malformed);
+//! - a pose whose stamp is not newer than the last one (out of order, or a duplicate);
+//! - a non-finite value anywhere, or (for a tool-frame wrench, which needs it) an orientation
+//!   that is not a rotation (a zero quaternion);
+//! - an impossible jump: faster than [`StateConfig::max_speed_m_per_s`] from the last accepted
+//!   sample.
+
+use mmt::cloud::Pose;
+use mmt::vec3::{self, Vec3};
+use node::RobotSample;
+use serde::Serialize;
+
+use crate::msg::{PoseStamped, Time, TwistStamped, WrenchStamped};
+
+/// Which frame the wrench is expressed in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum WrenchFrame {
+    /// The pose's frame (the base).
+    #[default]
+    Base,
+    /// The tool's frame: rotated into the base frame by the pose's orientation.
+    Tool,
+}
+
+/// What the wrench's force is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum WrenchSign {
+    /// The force the environment exerts on the tool.
+    #[default]
+    OnTool,
+    /// The force the tool exerts on the environment (negated here).
+    ByTool,
+}
+
+/// How samples are assembled and checked.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct StateConfig {
+    /// A twist topic is expected (else the velocity is differentiated from the pose).
+    pub twist: bool,
+    /// The wrench's frame.
+    pub wrench_frame: WrenchFrame,
+    /// The wrench's sign.
+    pub wrench_sign: WrenchSign,
+    /// How far apart pose, twist and wrench stamps may be and still make one sample \[ns\].
+    /// Default 2 ms: two ticks of a 1 kHz driver.
+    pub pair_tolerance_ns: i64,
+    /// Faster than this between two samples is an impossible jump \[m/s\]. Default 3 m/s:
+    /// above any collaborative arm's Cartesian limit (Franka: 1.7 m/s).
+    pub max_speed_m_per_s: f64,
+}
+
+impl Default for StateConfig {
+    fn default() -> Self {
+        StateConfig {
+            twist: true,
+            wrench_frame: WrenchFrame::Base,
+            wrench_sign: WrenchSign::OnTool,
+            pair_tolerance_ns: 2_000_000,
+            max_speed_m_per_s: 3.0,
+        }
+    }
+}
+
+/// One assembled robot state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StateSample {
+    /// The pose's header stamp \[ns, ROS time\].
+    pub stamp_ns: i64,
+    /// When the pose arrived \[ns, the receiver's monotonic clock\].
+    pub received_ns: i64,
+    /// Position, velocity and force on the tool, base frame.
+    pub sample: RobotSample,
+    /// The tool's orientation (x, y, z, w).
+    pub orientation_xyzw: [f64; 4],
+}
+
+/// What the assembler did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct StateCounts {
+    /// Poses received.
+    pub poses: u64,
+    /// Twists received.
+    pub twists: u64,
+    /// Wrenches received.
+    pub wrenches: u64,
+    /// Samples emitted.
+    pub samples: u64,
+    /// Messages whose stamp had `nanosec ≥ 1e9`.
+    pub malformed_stamps: u64,
+    /// Poses (or twists, wrenches) older than the newest of their stream.
+    pub out_of_order: u64,
+    /// Poses (or twists, wrenches) with the same stamp as the newest of their stream.
+    pub duplicates: u64,
+    /// Samples with a non-finite value or a zero quaternion.
+    pub non_finite: u64,
+    /// Samples beyond the plausible speed.
+    pub impossible_jumps: u64,
+    /// Poses with no wrench (or twist) within the pairing tolerance.
+    pub unpaired: u64,
+}
+
+/// One stream's last two samples (stamp, value).
+#[derive(Clone, Copy, Debug, Default)]
+struct Recent {
+    latest: Option<(i64, Vec3)>,
+    previous: Option<(i64, Vec3)>,
+}
+
+impl Recent {
+    /// Stores a sample; returns the refusal, if any.
+    fn push(&mut self, stamp: i64, v: Vec3, counts: &mut StateCounts) -> bool {
+        if let Some((t, _)) = self.latest {
+            if stamp == t {
+                counts.duplicates += 1;
+                return false;
+            }
+            if stamp < t {
+                counts.out_of_order += 1;
+                return false;
+            }
+        }
+        self.previous = self.latest;
+        self.latest = Some((stamp, v));
+        true
+    }
+
+    fn reached(&self, stamp: i64) -> bool {
+        self.latest.is_some_and(|(t, _)| t >= stamp)
+    }
+
+    /// The sample nearest `stamp`, if within `tolerance`.
+    fn nearest(&self, stamp: i64, tolerance: i64) -> Option<Vec3> {
+        [self.latest, self.previous]
+            .into_iter()
+            .flatten()
+            .min_by_key(|(t, _)| (t - stamp).abs())
+            .filter(|(t, _)| (t - stamp).abs() <= tolerance)
+            .map(|(_, v)| v)
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct PendingPose {
+    stamp: i64,
+    received_ns: i64,
+    position: Vec3,
+    orientation: [f64; 4],
+}
+
+/// The assembler. See the module docs.
+#[derive(Clone, Debug)]
+pub struct StateAssembler {
+    config: StateConfig,
+    pending: Option<PendingPose>,
+    newest_pose: Option<i64>,
+    twist: Recent,
+    wrench: Recent,
+    last: Option<(i64, Vec3)>,
+    out: Vec<StateSample>,
+    counts: StateCounts,
+}
+
+fn stamp_ns(t: Time, counts: &mut StateCounts) -> Option<i64> {
+    let ns = t.to_nanos();
+    if ns.is_none() {
+        counts.malformed_stamps += 1;
+    }
+    ns
+}
+
+impl StateAssembler {
+    /// An assembler for `config`.
+    pub fn new(config: StateConfig) -> StateAssembler {
+        StateAssembler {
+            config,
+            pending: None,
+            newest_pose: None,
+            twist: Recent::default(),
+            wrench: Recent::default(),
+            last: None,
+            out: Vec::with_capacity(4),
+            counts: StateCounts::default(),
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &StateConfig {
+        &self.config
+    }
+
+    /// A pose arrived at `received_ns`.
+    pub fn on_pose(&mut self, msg: &PoseStamped, received_ns: i64) {
+        self.counts.poses += 1;
+        let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts) else {
+            return;
+        };
+        if let Some(newest) = self.newest_pose {
+            if stamp == newest {
+                self.counts.duplicates += 1;
+                return;
+            }
+            if stamp < newest {
+                self.counts.out_of_order += 1;
+                return;
+            }
+        }
+        self.newest_pose = Some(stamp);
+        if let Some(old) = self.pending.take() {
+            self.emit(old); // overtaken: the nearest wrench and twist, or unpaired
+        }
+        let o = msg.pose.orientation;
+        self.pending = Some(PendingPose {
+            stamp,
+            received_ns,
+            position: msg.pose.position.to_array(),
+            orientation: [o.x, o.y, o.z, o.w],
+        });
+        self.try_complete();
+    }
+
+    /// A twist arrived.
+    pub fn on_twist(&mut self, msg: &TwistStamped) {
+        self.counts.twists += 1;
+        if let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts)
+            && self
+                .twist
+                .push(stamp, msg.twist.linear.to_array(), &mut self.counts)
+        {
+            self.try_complete();
+        }
+    }
+
+    /// A wrench arrived.
+    pub fn on_wrench(&mut self, msg: &WrenchStamped) {
+        self.counts.wrenches += 1;
+        if let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts)
+            && self
+                .wrench
+                .push(stamp, msg.wrench.force.to_array(), &mut self.counts)
+        {
+            self.try_complete();
+        }
+    }
+
+    /// The next assembled sample, oldest first.
+    pub fn take(&mut self) -> Option<StateSample> {
+        if self.out.is_empty() {
+            None
+        } else {
+            Some(self.out.remove(0))
+        }
+    }
+
+    /// What it did.
+    pub fn counts(&self) -> StateCounts {
+        self.counts
+    }
+
+    fn try_complete(&mut self) {
+        let Some(p) = self.pending else { return };
+        let ready =
+            self.wrench.reached(p.stamp) && (!self.config.twist || self.twist.reached(p.stamp));
+        if ready {
+            self.pending = None;
+            self.emit(p);
+        }
+    }
+
+    fn emit(&mut self, p: PendingPose) {
+        let tol = self.config.pair_tolerance_ns;
+        let Some(force) = self.wrench.nearest(p.stamp, tol) else {
+            self.counts.unpaired += 1;
+            return;
+        };
+        let twist = if self.config.twist {
+            match self.twist.nearest(p.stamp, tol) {
+                Some(v) => Some(v),
+                None => {
+                    self.counts.unpaired += 1;
+                    return;
+                }
+            }
+        } else {
+            None
+        };
+        let finite = vec3::is_finite(p.position)
+            && vec3::is_finite(force)
+            && twist.is_none_or(vec3::is_finite)
+            && p.orientation.iter().all(|c| c.is_finite());
+        let [x, y, z, w] = p.orientation;
+        let rotation = Pose::from_quaternion([w, x, y, z], [0.0; 3]);
+        // The orientation matters only to rotate a tool-frame wrench.
+        let rotation_needed = self.config.wrench_frame == WrenchFrame::Tool;
+        if !finite || (rotation_needed && rotation.is_none()) {
+            self.counts.non_finite += 1;
+            return;
+        }
+        if let Some((t, at)) = self.last {
+            let dt = (p.stamp - t) as f64 * 1e-9;
+            let speed = vec3::norm(vec3::sub(p.position, at)) / dt;
+            if !(speed <= self.config.max_speed_m_per_s) {
+                self.counts.impossible_jumps += 1;
+                return;
+            }
+        }
+        let force = match self.config.wrench_frame {
+            WrenchFrame::Base => force,
+            WrenchFrame::Tool => rotation.map_or(force, |r| r.rotate(force)),
+        };
+        let force = match self.config.wrench_sign {
+            WrenchSign::OnTool => force,
+            WrenchSign::ByTool => vec3::scale(force, -1.0),
+        };
+        let velocity = match (twist, self.last) {
+            (Some(v), _) => v,
+            (None, Some((t, at))) => {
+                vec3::scale(vec3::sub(p.position, at), 1e9 / (p.stamp - t) as f64)
+            }
+            (None, None) => [0.0; 3],
+        };
+        self.last = Some((p.stamp, p.position));
+        self.counts.samples += 1;
+        self.out.push(StateSample {
+            stamp_ns: p.stamp,
+            received_ns: p.received_ns,
+            sample: RobotSample {
+                position_m: p.position,
+                velocity_m_per_s: velocity,
+                force_on_tool_n: force,
+            },
+            orientation_xyzw: p.orientation,
+        });
+    }
+}
+
+/// Maps header stamps (the robot's clock) onto the receiver's monotonic clock: `stamp + offset`,
+/// the offset being the smallest `received − stamp` seen over the last 1–2 s (the fastest
+/// delivery, so a mapped time is never after its receipt; the window follows a slow drift of
+/// either clock). On one host the offset is the clocks' difference plus the fastest latency; on
+/// two it also absorbs their offset, so no clock synchronisation is needed for timing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StampClock {
+    current: Option<i64>,
+    previous: Option<i64>,
+    bucket_start_ns: i64,
+    last_mapped: Option<i64>,
+}
+
+/// The offset window's bucket length \[ns\].
+const BUCKET_NS: i64 = 1_000_000_000;
+
+impl StampClock {
+    /// Maps `stamp_ns`, received at `received_ns`. Mapped times strictly increase.
+    pub fn map(&mut self, stamp_ns: i64, received_ns: i64) -> i64 {
+        let offset = received_ns - stamp_ns;
+        if self.current.is_none() || received_ns - self.bucket_start_ns > BUCKET_NS {
+            self.previous = self.current;
+            self.current = Some(offset);
+            self.bucket_start_ns = received_ns;
+        } else {
+            self.current = self.current.map(|c| c.min(offset));
+        }
+        let best = match (self.current, self.previous) {
+            (Some(c), Some(p)) => c.min(p),
+            (Some(c), None) => c,
+            (None, _) => offset,
+        };
+        let mapped = stamp_ns.saturating_add(best);
+        let mapped = match self.last_mapped {
+            Some(last) if mapped <= last => last + 1,
+            _ => mapped,
+        };
+        self.last_mapped = Some(mapped);
+        mapped
+    }
+}
+
+#[cfg(test)]
+mod tests;

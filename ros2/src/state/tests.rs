@@ -1,0 +1,244 @@
+use super::*;
+use crate::msg::{Header, Point, Pose as RosPose, Quaternion, Twist, Vector3, Wrench};
+
+const MS: i64 = 1_000_000;
+
+fn header(stamp: i64) -> Header {
+    Header {
+        stamp: Time::from_nanos(stamp),
+        frame_id: "fr3_link0".into(),
+    }
+}
+
+fn pose(stamp: i64, p: Vec3) -> PoseStamped {
+    PoseStamped {
+        header: header(stamp),
+        pose: RosPose {
+            position: Point::from_array(p),
+            orientation: Quaternion::default(),
+        },
+    }
+}
+
+fn twist(stamp: i64, v: Vec3) -> TwistStamped {
+    TwistStamped {
+        header: header(stamp),
+        twist: Twist {
+            linear: Vector3::from_array(v),
+            angular: Vector3::default(),
+        },
+    }
+}
+
+fn wrench(stamp: i64, f: Vec3) -> WrenchStamped {
+    WrenchStamped {
+        header: header(stamp),
+        wrench: Wrench {
+            force: Vector3::from_array(f),
+            torque: Vector3::default(),
+        },
+    }
+}
+
+fn all(a: &mut StateAssembler) -> Vec<StateSample> {
+    std::iter::from_fn(|| a.take()).collect()
+}
+
+#[test]
+fn one_sample_per_stamp_once_every_stream_has_it_in_any_arrival_order() {
+    let mut a = StateAssembler::new(StateConfig::default());
+    // Stamp 1: pose, twist, wrench.
+    a.on_pose(&pose(MS, [0.1, 0.0, 0.01]), 5);
+    a.on_twist(&twist(MS, [0.01, 0.0, 0.0]));
+    assert!(a.take().is_none(), "waits for the wrench");
+    a.on_wrench(&wrench(MS, [0.0, 0.0, 1.5]));
+    let s = all(&mut a);
+    assert_eq!(s.len(), 1);
+    assert_eq!(s[0].stamp_ns, MS);
+    assert_eq!(s[0].received_ns, 5);
+    assert_eq!(s[0].sample.position_m, [0.1, 0.0, 0.01]);
+    assert_eq!(s[0].sample.velocity_m_per_s, [0.01, 0.0, 0.0]);
+    assert_eq!(s[0].sample.force_on_tool_n, [0.0, 0.0, 1.5]);
+    // Stamp 2: wrench first, then twist, then pose.
+    a.on_wrench(&wrench(2 * MS, [0.0, 0.0, 1.6]));
+    a.on_twist(&twist(2 * MS, [0.02, 0.0, 0.0]));
+    a.on_pose(&pose(2 * MS, [0.10001, 0.0, 0.01]), 6);
+    let s = all(&mut a);
+    assert_eq!(s.len(), 1);
+    assert_eq!(s[0].sample.force_on_tool_n, [0.0, 0.0, 1.6]);
+    assert_eq!(a.counts().samples, 2);
+}
+
+#[test]
+fn a_pose_overtaken_is_paired_with_the_nearest_or_refused() {
+    let mut a = StateAssembler::new(StateConfig {
+        twist: false,
+        ..StateConfig::default()
+    });
+    // A driver whose wrench stamps lag its pose stamps by 0.3 ms.
+    for k in 1..=5 {
+        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
+        a.on_wrench(&wrench(k * MS - 300_000, [0.0, 0.0, k as f64]));
+    }
+    let s = all(&mut a);
+    // Each pose is emitted when the next arrives, with its nearest wrench.
+    assert_eq!(s.len(), 4);
+    for (i, s) in s.iter().enumerate() {
+        assert_eq!(s.sample.force_on_tool_n[2], (i + 1) as f64);
+    }
+    // A wrench stream that stopped: poses are refused as unpaired, not paired with old forces.
+    for k in 10..=14 {
+        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
+    }
+    let s = all(&mut a);
+    assert_eq!(
+        s.len(),
+        1,
+        "pose 5, overtaken by pose 10, still had its wrench"
+    );
+    assert_eq!(s[0].sample.force_on_tool_n[2], 5.0);
+    assert_eq!(a.counts().unpaired, 4, "poses 10 to 13");
+}
+
+#[test]
+fn out_of_order_duplicates_and_malformed_stamps_are_dropped_and_counted() {
+    let mut a = StateAssembler::new(StateConfig::default());
+    for k in [1, 2, 2, 1, 3] {
+        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
+        a.on_twist(&twist(k * MS, [0.0; 3]));
+        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+    }
+    let stamps: Vec<i64> = all(&mut a).iter().map(|s| s.stamp_ns).collect();
+    assert_eq!(stamps, [MS, 2 * MS, 3 * MS]);
+    let c = a.counts();
+    assert_eq!((c.duplicates, c.out_of_order), (3, 3), "{c:?}");
+    let mut bad = pose(4 * MS, [0.0; 3]);
+    bad.header.stamp.nanosec = 1_000_000_000;
+    a.on_pose(&bad, 0);
+    assert_eq!(a.counts().malformed_stamps, 1);
+}
+
+#[test]
+fn non_finite_values_and_impossible_jumps_are_refused() {
+    let mut a = StateAssembler::new(StateConfig::default());
+    let step = |a: &mut StateAssembler, k: i64, p: Vec3, v: Vec3, f: Vec3| {
+        a.on_pose(&pose(k * MS, p), 0);
+        a.on_twist(&twist(k * MS, v));
+        a.on_wrench(&wrench(k * MS, f));
+        all(a).len()
+    };
+    assert_eq!(step(&mut a, 1, [0.0; 3], [0.0; 3], [0.0; 3]), 1);
+    assert_eq!(step(&mut a, 2, [f64::NAN, 0.0, 0.0], [0.0; 3], [0.0; 3]), 0);
+    assert_eq!(
+        step(&mut a, 3, [0.0; 3], [0.0, f64::INFINITY, 0.0], [0.0; 3]),
+        0
+    );
+    assert_eq!(step(&mut a, 4, [0.0; 3], [0.0; 3], [0.0, 0.0, f64::NAN]), 0);
+    // 1 cm in 1 ms from the last accepted sample (at 1 ms, 4 ms ago): 2.5 m/s, plausible.
+    assert_eq!(step(&mut a, 5, [0.01, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
+    // 1 cm more in 1 ms: 10 m/s, impossible.
+    assert_eq!(step(&mut a, 6, [0.02, 0.0, 0.0], [0.0; 3], [0.0; 3]), 0);
+    // The next sample is judged against the last accepted one: back where it was, fine.
+    assert_eq!(step(&mut a, 7, [0.0101, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
+    let c = a.counts();
+    assert_eq!((c.non_finite, c.impossible_jumps, c.samples), (3, 1, 3));
+}
+
+#[test]
+fn without_a_twist_the_velocity_is_the_pose_difference() {
+    let mut a = StateAssembler::new(StateConfig {
+        twist: false,
+        ..StateConfig::default()
+    });
+    for k in 0..5 {
+        let t = k * 2 * MS; // a 500 Hz driver
+        a.on_pose(&pose(t, [0.001 * k as f64, 0.0, 0.0]), 0);
+        a.on_wrench(&wrench(t, [0.0; 3]));
+    }
+    let s = all(&mut a);
+    assert_eq!(s.len(), 5);
+    assert_eq!(s[0].sample.velocity_m_per_s, [0.0; 3]);
+    for s in &s[1..] {
+        assert!((s.sample.velocity_m_per_s[0] - 0.5).abs() < 1e-9, "{s:?}");
+    }
+}
+
+/// The sign convention: pressing down (−z) into a table whose surface pushes back up (+z).
+#[test]
+fn the_wrench_is_the_force_on_the_tool_rotated_and_signed_as_declared() {
+    let press = |config: StateConfig, orientation: Quaternion, f: Vec3| {
+        let mut a = StateAssembler::new(config);
+        let mut p = pose(MS, [0.0, 0.0, -0.004]);
+        p.pose.orientation = orientation;
+        a.on_pose(&p, 0);
+        a.on_twist(&twist(MS, [0.0; 3]));
+        a.on_wrench(&wrench(MS, f));
+        a.take().unwrap().sample.force_on_tool_n
+    };
+    let base = StateConfig::default();
+    assert_eq!(
+        press(base, Quaternion::default(), [0.0, 0.0, 2.0]),
+        [0.0, 0.0, 2.0]
+    );
+    let by_tool = StateConfig {
+        wrench_sign: WrenchSign::ByTool,
+        ..base
+    };
+    assert_eq!(
+        press(by_tool, Quaternion::default(), [0.0, 0.0, -2.0]),
+        [0.0, 0.0, 2.0]
+    );
+    // A tool pointing down (rotated π about x): its +z is the base's −z.
+    let down = Quaternion {
+        x: 1.0,
+        y: 0.0,
+        z: 0.0,
+        w: 0.0,
+    };
+    let tool = StateConfig {
+        wrench_frame: WrenchFrame::Tool,
+        ..base
+    };
+    let f = press(tool, down, [0.0, 0.0, -2.0]);
+    assert!(vec3::norm(vec3::sub(f, [0.0, 0.0, 2.0])) < 1e-12, "{f:?}");
+    // A tool-frame wrench needs an orientation: a zero quaternion is refused.
+    let mut a = StateAssembler::new(tool);
+    let mut p = pose(MS, [0.0; 3]);
+    p.pose.orientation = Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+        w: 0.0,
+    };
+    a.on_pose(&p, 0);
+    a.on_twist(&twist(MS, [0.0; 3]));
+    a.on_wrench(&wrench(MS, [0.0; 3]));
+    assert!(a.take().is_none());
+    assert_eq!(a.counts().non_finite, 1);
+}
+
+#[test]
+fn the_stamp_clock_maps_onto_the_fastest_delivery_and_increases() {
+    let mut c = StampClock::default();
+    let offset = 1_000_000_000_000; // the two clocks differ by 1000 s
+    // Latencies 300, 100, 500 µs: the offset settles on the 100 µs one.
+    assert_eq!(c.map(0, offset + 300_000), offset + 300_000);
+    assert_eq!(c.map(MS, offset + MS + 100_000), offset + MS + 100_000);
+    assert_eq!(
+        c.map(2 * MS, offset + 2 * MS + 500_000),
+        offset + 2 * MS + 100_000
+    );
+    // A later, faster delivery lowers the offset, but never makes time go back.
+    let m = c.map(3 * MS, offset + 3 * MS - 900_000 + 1_000_000 - 995_000);
+    assert!(m > offset + 2 * MS + 100_000);
+    // Mapped times never lie after their receipt.
+    let mut c = StampClock::default();
+    let mut last = i64::MIN;
+    for k in 0..5000i64 {
+        let lat = 50_000 + (k * 7919 % 400) * 1000;
+        let received = offset + k * MS + lat;
+        let m = c.map(k * MS, received);
+        assert!(m <= received && m > last);
+        last = m;
+    }
+}
