@@ -239,14 +239,18 @@ impl SlidingMassRenderer {
 /// The contact bookkeeping of a rendered tick: at the onset the anchor from the onset state;
 /// in contact the onset's anchor with the parameters rendered now (the parameters moved; the
 /// last input moves with it, so the step interpolates no jump); out of contact no onset.
+/// Largest move of the anchor per tick while in contact [m] (5 mm/s at 1 kHz).
+pub(crate) const MAX_ANCHOR_STEP_M: f64 = 5e-6;
+
 fn place_anchor(s: &mut SlidingState, x: f64, v: f64, in_contact: bool, rendered: &Physical) {
     if in_contact && !s.in_contact {
         s.onset = Some([x, v - s.mass_velocity_m_per_s, s.mass_position_m]);
         s.anchor_m = anchor(s.onset, rendered).unwrap_or(x - s.mass_position_m);
         s.last_input = [x - s.anchor_m, v];
     } else if in_contact && let Some(a) = anchor(s.onset, rendered) {
-        s.last_input[0] -= a - s.anchor_m;
-        s.anchor_m = a;
+        let step = (a - s.anchor_m).clamp(-MAX_ANCHOR_STEP_M, MAX_ANCHOR_STEP_M);
+        s.last_input[0] -= step;
+        s.anchor_m += step;
     }
     if !in_contact {
         s.onset = None;
