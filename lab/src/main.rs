@@ -26,6 +26,9 @@ enum Command {
     CloudBudget(cli::cloud_budget::Args),
     /// Reproduce thesis experiments 1–3 in-process (exp1, exp2, exp3).
     Experiment(cli::experiment::ExperimentArgs),
+    /// The experiment over a seeded class of objects and named corner cases: several motions,
+    /// delays and sensor presets, per-case figures and percentiles.
+    Benchmark(cli::benchmark::BenchmarkArgs),
     /// The report and plots of a recorded run, computed again from FILE.mcap.
     Report(cli::report::ReportArgs),
     /// Renderer frequency response against the exact |F/X|.
@@ -47,6 +50,7 @@ fn main() -> ExitCode {
         Command::ContactBench(args) => cli::contact_bench::run(&args),
         Command::CloudBudget(args) => cli::cloud_budget::run(&args),
         Command::Experiment(args) => cli::experiment::run_cmd(args),
+        Command::Benchmark(args) => cli::benchmark::run_cmd(args),
         Command::Report(args) => cli::report::run(args),
         Command::Transfer(args) => cli::transfer::run(args),
         Command::Estimate(args) => cli::estimate::run(args),

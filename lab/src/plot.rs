@@ -18,6 +18,20 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
     /// Draw markers at the points as well as the line.
     pub markers: bool,
+    /// Draw the line (false: markers only, a scatter plot).
+    pub line: bool,
+}
+
+impl Series {
+    /// Markers only.
+    pub fn scatter(name: &str, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            name: name.into(),
+            points,
+            markers: true,
+            line: false,
+        }
+    }
 }
 
 /// One chart.
@@ -208,17 +222,24 @@ where
             .copied()
             .filter(|&(x, y)| panel.keeps(x, y))
             .collect();
-        chart
-            .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
-            .map_err(draw_err)?
-            .label(s.name.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        if s.markers {
+        if s.line {
             chart
+                .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
+                .map_err(draw_err)?
+                .label(s.name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                });
+        }
+        if s.markers {
+            let markers = chart
                 .draw_series(line.iter().map(|&p| Circle::new(p, 3, color.filled())))
                 .map_err(draw_err)?;
+            if !s.line {
+                markers
+                    .label(s.name.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 9, y), 3, color.filled()));
+            }
         }
     }
     if panel.series.len() > 1 {
@@ -291,12 +312,15 @@ mod tests {
                     name: "a".into(),
                     points: vec![(1.0, 2.0), (2.0, 3.0), (f64::NAN, 1.0), (0.0, 5.0)],
                     markers: true,
+                    line: true,
                 },
                 Series {
                     name: "b".into(),
                     points: vec![],
                     markers: false,
+                    line: true,
                 },
+                Series::scatter("c", vec![(1.5, 2.5)]),
             ],
         }
     }

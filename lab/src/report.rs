@@ -100,6 +100,7 @@ fn error_panels(error_over_time: &[Window]) -> Vec<Panel> {
                 .filter_map(|w| w.rms_error_pct.map(|e| (w.t_s + 0.5, e)))
                 .collect(),
             markers: true,
+            line: true,
         }],
     }]
 }
@@ -139,5 +140,6 @@ fn line(name: &str, points: Vec<(f64, f64)>) -> Line {
         name: name.into(),
         points,
         markers: false,
+        line: true,
     }
 }

@@ -14,12 +14,14 @@
 mod analyse;
 mod csv;
 pub mod networked;
+mod series;
 pub mod spectrum;
 mod table;
 
 pub use analyse::{
-    BANDS, Band, ContactLatency, ExperimentReport, NodeInfo, ParameterReport, RunInfo, Series,
-    ThesisFigures, Window, analyse, parameter_report,
+    BANDS, Band, ContactLatency, EstimatorReport, ExperimentReport, NodeInfo, ParameterReport,
+    RunInfo, ThesisFigures, Window, analyse, parameter_report,
 };
 pub use csv::{CSV_HEADER, CsvError};
+pub use series::Series;
 pub use table::table;

@@ -310,7 +310,7 @@ impl SlidingObjectSim {
             tool: [tool_position_m, tool_velocity_m_per_s],
             rest_offset_m: 0.0,
             in_contact: false,
-            sensors: Sensors::new(config.noise, rng),
+            sensors: Sensors::new(config.noise, config.sample_period_s, rng),
             stats: FrictionStats::default(),
             last_sign: 0.0,
             episode_changes: None,

@@ -154,6 +154,7 @@ impl World {
         let origin = scene.surface.point_m;
         let env = scene.environment;
         let noise = scene.sensors.noise();
+        let period = 1.0 / scene.rates.control_hz;
         let local = to_local(&frame, origin, tool_m);
         let rng =
             |k: u64| Pcg64::seed_from_u64(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k));
@@ -165,7 +166,7 @@ impl World {
                     rest_m: 0.0,
                     last: [local[i], 0.0],
                     in_contact: false,
-                    sensors: Sensors::new(noise, rng(i as u64 + 1)),
+                    sensors: Sensors::new(noise, period, rng(i as u64 + 1)),
                 });
             }
             let config = SimConfig {
@@ -189,7 +190,7 @@ impl World {
             k_n: env.k_contact_n_per_m,
             b_n: env.b_contact_ns_per_m,
             tangential: [axis(0)?, axis(1)?],
-            normal_sensors: Sensors::new(noise, rng(0)),
+            normal_sensors: Sensors::new(noise, period, rng(0)),
         })
     }
 

@@ -209,7 +209,9 @@ fn garbage_theta(name: &str, bad: Physical) -> Case {
     if let Ok(g) = gate_physical(FULL, &Params::SlidingMass(Physical::THESIS_EXP1)) {
         r.set_target(&g);
     }
-    let theta = bad.theta().unwrap_or(Theta([f64::NAN; 8]));
+    let theta = bad
+        .theta()
+        .unwrap_or(Theta([f64::NAN; mmt::model::col::COUNT]));
     let gate = match gate(FULL, &theta, None, &GateConfig::default()) {
         Ok(g) => {
             r.set_target(&g);

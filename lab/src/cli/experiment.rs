@@ -31,7 +31,8 @@ pub struct ExperimentArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
-    /// Scripted trajectory (exp1, exp2, chirp, steps, probe, hold).
+    /// Scripted trajectory (exp1, exp2, chirp, steps, probe, slow, human, hold; human is drawn
+    /// from the seed).
     #[arg(long)]
     trajectory: Option<String>,
     /// Detect contact from the telerobot's state only (the thesis's way).

@@ -1,5 +1,6 @@
 //! The binary's command implementations: argument structs, printing, timing, files.
 
+pub mod benchmark;
 pub mod cloud_budget;
 pub mod contact_bench;
 pub mod estimate;

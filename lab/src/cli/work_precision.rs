@@ -49,6 +49,7 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
                             })
                             .collect(),
                         markers: true,
+                        line: true,
                     })
                     .collect(),
             })

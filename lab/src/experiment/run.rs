@@ -21,7 +21,7 @@ use protocol::telerobot_to_operator::Admission;
 use protocol::{operator_to_telerobot as up, telerobot_to_operator as down};
 use sim::SimBridge;
 use sim::camera::Camera;
-use sim::trajectory::{Placed, Trajectory, by_name};
+use sim::trajectory::{Placed, Trajectory, by_name_seeded};
 
 use super::recorded::{HarnessTick, Recorded};
 use super::{ExperimentConfig, ExperimentError, ExperimentReport};
@@ -151,11 +151,12 @@ impl Harness {
         let settings = scene.telerobot_settings();
         let operator_settings = OperatorSettings::from_welcome(&scene.summary())
             .map_err(|e| ExperimentError::Settings(e.to_string()))?;
-        let trajectory = by_name(
+        let trajectory = by_name_seeded(
             &config.trajectory,
             config.seconds,
             scene.surface.point_m,
             scene.surface.normal,
+            config.seed,
         )?;
         let start = trajectory.sample(0.0).position_m;
         let shadow_config = OperatorConfig {
@@ -396,7 +397,20 @@ impl Harness {
                 p.confirmed_updates = Some(s.confirmed);
             }
         }
+        let estimators = [
+            ("normal", telerobot.normal_estimator()),
+            ("tangential", telerobot.tangential_estimator()),
+        ]
+        .into_iter()
+        .filter_map(|(axes, e)| {
+            e.map(|e| metrics::EstimatorReport {
+                axes: axes.to_owned(),
+                stats: e.stats(),
+            })
+        })
+        .collect();
         let nodes = NodeInfo {
+            estimators,
             parameters,
             operator: self.operator.node.stats(),
             shadow: self.operator.shadow.stats(),

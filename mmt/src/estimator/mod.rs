@@ -30,9 +30,9 @@ use confidence::Confidence;
 pub use confidence::ConfidenceConfig;
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
-use crate::model::Structure;
 use crate::model::backsolve::Confidence as BackSolveConfidence;
-use crate::model::gates::{GateConfig, GateRejection, Gated, gate};
+use crate::model::gates::{GateConfig, GateRejection, Gated, gate, gate_informed};
+use crate::model::{Structure, col};
 use crate::rls::{ColumnScales, Mode, Outcome, Rls, RlsConfig, RlsCounts, RlsError};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -71,6 +71,15 @@ pub struct EstimatorConfig {
     pub reset: ResetPolicy,
     /// Time constant of the out-of-contact force tare [s]. Default 0.5.
     pub tare_time_constant_s: f64,
+    /// Identify a constant force per axis besides the structure's terms (the columns
+    /// [`col::I`], [`col::J`]), restarted at every contact onset when the structure has a static
+    /// stiffness (`d`): a spring-mounted object's force depends on where the contact began
+    /// relative to where its ground spring rests, which no other column can represent. Default
+    /// true.
+    pub intercept: bool,
+    /// Back-solve and gate with the data's information ([`gate_informed`]) rather than with
+    /// per-coefficient weights. Default true.
+    pub informed: bool,
 }
 
 impl EstimatorConfig {
@@ -90,6 +99,8 @@ impl EstimatorConfig {
             confidence: ConfidenceConfig::default(),
             reset: ResetPolicy::NewObject,
             tare_time_constant_s: 0.5,
+            intercept: true,
+            informed: true,
         }
     }
 }
@@ -140,7 +151,7 @@ pub struct Update {
 }
 
 /// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EstimatorStats {
     /// Samples with a non-finite value, dropped before the filters.
     pub rejected_samples: u64,
@@ -154,10 +165,49 @@ pub struct EstimatorStats {
     /// where noise on θ is amplified many times in φ). They are published like the others; the
     /// count and [`Gated::confidence`] let reports say so.
     pub low_confidence_confirmed: u64,
+    /// Back-solves rejected, by the gate that rejected them.
+    pub rejections: RejectionCounts,
+    /// Back-solves that passed every gate but not (yet) the confidence gate: withheld.
+    pub withheld: u64,
     /// New-object resets.
     pub new_objects: u64,
     /// Onset resets (policy `EveryOnset`).
     pub onset_resets: u64,
+}
+
+/// Back-solves rejected, per gate ([`GateRejection`]'s variants).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RejectionCounts {
+    /// A coefficient or parameter not finite.
+    pub non_finite: u64,
+    /// A pole of F/X not in the open left half-plane.
+    pub not_eigen_stable: u64,
+    /// Stable but not passive.
+    pub not_passive: u64,
+    /// A physical parameter negative.
+    pub not_physical: u64,
+    /// θ too far off the model manifold.
+    pub residual: u64,
+    /// The back-solve refused (e.g. the mass not identifiable).
+    pub back_solve: u64,
+    /// A parameter not pinned down by the data.
+    pub not_identified: u64,
+}
+
+impl RejectionCounts {
+    /// Counts one rejection.
+    pub fn count(&mut self, r: &GateRejection) {
+        let c = match r {
+            GateRejection::NonFinite { .. } | GateRejection::Free => &mut self.non_finite,
+            GateRejection::NotEigenStable { .. } => &mut self.not_eigen_stable,
+            GateRejection::NotPassive { .. } => &mut self.not_passive,
+            GateRejection::NotPhysical { .. } => &mut self.not_physical,
+            GateRejection::Residual { .. } => &mut self.residual,
+            GateRejection::BackSolve(_) => &mut self.back_solve,
+            GateRejection::NotIdentified { .. } => &mut self.not_identified,
+        };
+        *c += 1;
+    }
 }
 
 /// An invalid estimator configuration.
@@ -231,8 +281,14 @@ impl Estimator {
         field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
         config.confidence.validate()?;
         let filter = RegressorFilter::new(config.filter)?;
+        let mut columns = config.structure.columns();
+        if config.intercept {
+            for axis in 0..config.axes {
+                columns = columns.with(col::intercept(axis));
+            }
+        }
         let rls = Rls::new(RlsConfig {
-            columns: config.structure.columns(),
+            columns,
             forgetting: config.forgetting.powf(1.0 / config.axes as f64),
             initial_covariance: config.initial_covariance,
             max_mean_variance: config.initial_covariance,
@@ -285,7 +341,9 @@ impl Estimator {
                 // First sample: start the filter in the steady state instead of ringing from 0.
                 self.filters[i].reset_steady(s.position_m, s.velocity_m_per_s, f);
             }
-            self.regressions[i] = self.filters[i].step(s.position_m, s.velocity_m_per_s, f);
+            self.regressions[i] = self.filters[i]
+                .step(s.position_m, s.velocity_m_per_s, f)
+                .with_constant(i);
         }
         if self.phase == Phase::Free {
             self.tared = true;
@@ -312,7 +370,7 @@ impl Estimator {
         }
         if self.phase == Phase::Learning && now_s >= self.next_back_solve_s {
             self.next_back_solve_s = now_s + self.config.back_solve_period_s;
-            self.back_solve(now_s, &mut update);
+            self.back_solve(&mut update);
         }
         update
     }
@@ -333,6 +391,7 @@ impl Estimator {
                 self.stats.onset_resets += 1;
                 update.new_object = true;
             }
+            self.restart_intercepts();
         }
         if self.phase == Phase::Guard && now_s - self.contact_since_s >= self.config.onset_guard_s {
             self.phase = Phase::Learning;
@@ -345,6 +404,21 @@ impl Estimator {
         }
     }
 
+    /// A new episode: with a static stiffness `d` in the structure, the constant of each axis
+    /// becomes `d·x` at the onset (the object at rest where its ground spring balances the
+    /// unloaded contact), uncertain by the prior covariance; without, the constant is a force
+    /// offset that persists and is kept.
+    fn restart_intercepts(&mut self) {
+        if !(self.config.intercept && self.config.structure.columns().contains(col::D)) {
+            return;
+        }
+        let d = self.rls.theta().0[col::D];
+        // ψ_D = −x_f: the filtered position at the onset.
+        let at = |i: usize| -d * self.regressions[i].psi[col::D];
+        self.rls
+            .reset_intercepts([at(0), at(1)], self.config.initial_covariance);
+    }
+
     fn start_new_model(&mut self) {
         // `reset` only fails for an invalid p0, which `new` already validated.
         let _ = self.rls.reset(self.config.initial_covariance);
@@ -352,28 +426,50 @@ impl Estimator {
         self.model_id += 1;
     }
 
-    fn back_solve(&mut self, now_s: f64, update: &mut Update) {
+    fn back_solve(&mut self, update: &mut Update) {
         self.stats.back_solves += 1;
         let weights = self.weights();
-        match gate(
+        let theta = self.rls.theta();
+        let svf = &self.config.filter.svf;
+        let correlation = 1.0 / (2.0 * svf.cutoff_hz * svf.sample_period_s);
+        let information = self
+            .rls
+            .information()
+            .filter(|_| self.config.informed)
+            .map(|i| i.with_correlation(correlation));
+        // The per-coefficient back-solve first: where it passes it is the more accurate on
+        // the parameters the motion barely excites (exp 1's mass: 1 % against 5 % informed).
+        // Where it fails — a spring-mounted object, stiff or heavy objects far from exp 1's
+        // scales — the informed one judges the set by the data instead.
+        let diagonal = gate(
             self.config.structure,
-            &self.rls.theta(),
+            &theta,
             Some(&weights),
             &self.config.gates,
-        ) {
+        );
+        let gated = match (&information, diagonal) {
+            (Some(info), Err(_)) => {
+                gate_informed(self.config.structure, &theta, info, &self.config.gates)
+            }
+            (_, d) => d,
+        };
+        match gated {
             Ok(g) => {
                 let error = self.rls.relative_error();
-                if self.confidence.push(now_s, &g, error) {
+                if self.confidence.push(&g, error, information.as_ref()) {
                     self.latest = Some(g);
                     self.stats.confirmed += 1;
                     if matches!(g.confidence(), BackSolveConfidence::Low { .. }) {
                         self.stats.low_confidence_confirmed += 1;
                     }
                     update.confirmed = Some(g);
+                } else {
+                    self.stats.withheld += 1;
                 }
             }
             Err(e) => {
                 self.stats.gate_rejections += 1;
+                self.stats.rejections.count(&e);
                 self.confidence.reject();
                 update.rejection = Some(e);
             }
@@ -423,6 +519,11 @@ impl Estimator {
     /// The current RLS estimate θ̂.
     pub fn theta(&self) -> crate::model::Theta {
         self.rls.theta()
+    }
+
+    /// What the data so far say about θ ([`crate::model::backsolve::Information`]).
+    pub fn information(&self) -> Option<crate::model::backsolve::Information> {
+        self.rls.information()
     }
 
     /// Smoothed relative a-priori prediction error of the RLS.

@@ -89,11 +89,23 @@ impl Default for RegressorConfig {
 /// One sample of the filtered regression: `y ≈ ψᵀθ` (see [`crate::model`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Regression {
-    /// `ψ = [−x‴, −x″, −x′, −x, −F″, −F′, −σ, −σ′]`, all filtered by the same `1/Λ(s)`
-    /// (indices [`col`]). Units: m/s³, m/s², m/s, m, N/s², N/s, 1, 1/s.
+    /// `ψ = [−x‴, −x″, −x′, −x, −F″, −F′, −σ, −σ′, 0, 0]`, all filtered by the same `1/Λ(s)`
+    /// (indices [`col`]). Units: m/s³, m/s², m/s, m, N/s², N/s, 1, 1/s. The constant columns
+    /// `i`, `j` are set by whoever knows the axis ([`Regression::with_constant`]).
     pub psi: [f64; col::COUNT],
     /// `y = F_f`: the filtered force on the tool [N].
     pub y: f64,
+}
+
+impl Regression {
+    /// The regression with the constant column of `axis` (0 or 1, [`col::intercept`]) set to 1
+    /// and the other's to 0.
+    pub fn with_constant(mut self, axis: usize) -> Regression {
+        self.psi[col::I] = 0.0;
+        self.psi[col::J] = 0.0;
+        self.psi[col::intercept(axis)] = 1.0;
+        self
+    }
 }
 
 /// Channel indices in the filter's state array.
@@ -153,6 +165,8 @@ impl RegressorFilter {
                 -d(F, 1),
                 -d(SIGMA, 0),
                 -d(SIGMA, 1),
+                0.0,
+                0.0,
             ],
             y: d(F, 0),
         }

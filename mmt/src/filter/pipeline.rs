@@ -106,7 +106,9 @@ fn inconsistent_cascade_fails() {
             fs[k + 1] = f_lp[k].derivative(0).unwrap_or(0.0);
         }
         Regression {
-            psi: [-xs[3], -xs[2], -xs[1], -xs[0], -fs[2], -fs[1], 0.0, 0.0],
+            psi: [
+                -xs[3], -xs[2], -xs[1], -xs[0], -fs[2], -fs[1], 0.0, 0.0, 0.0, 0.0,
+            ],
             y: f,
         }
     });

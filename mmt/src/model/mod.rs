@@ -116,6 +116,8 @@ impl Physical {
             (b1 + b2) / s,
             k2 * fc / s,
             b2 * fc / s,
+            0.0,
+            0.0,
         ]))
     }
 
@@ -180,13 +182,28 @@ pub mod col {
     pub const G: usize = 6;
     /// `h = b2 Fc/S`, column `−d/dt sgn ẋ` (`DESIGN.md` §11.1).
     pub const H: usize = 7;
-    /// Number of coefficients in the full model.
-    pub const COUNT: usize = 8;
+    /// `i`, column `1` on the first axis (`0` on the second): a constant force in the
+    /// regression [N], not a physical parameter. A spring-mounted object's force depends on the
+    /// tool's position relative to where the ground spring rests and where the contact began,
+    /// `y = … − d·(x − x₀)`, so `i = d·x₀` changes with every contact episode and differs
+    /// between axes; a force-sensor offset that was not tared adds to it. No structure has it;
+    /// an estimator adds it ([`Columns::with`]) and the back-solve ignores it.
+    pub const I: usize = 8;
+    /// `j`: the constant of the second axis of a group sharing θ (column `1` on it, `0` on
+    /// the first).
+    pub const J: usize = 9;
+    /// Number of coefficients.
+    pub const COUNT: usize = 10;
     /// Names, for reports.
-    pub const NAMES: [&str; COUNT] = ["a", "b", "c", "d", "e", "f", "g", "h"];
+    pub const NAMES: [&str; COUNT] = ["a", "b", "c", "d", "e", "f", "g", "h", "i", "j"];
+
+    /// The constant column of axis `axis` (0 or 1) of a group sharing θ.
+    pub const fn intercept(axis: usize) -> usize {
+        if axis == 0 { I } else { J }
+    }
 }
 
-/// Regression coefficients `θ = [a, b, c, d, e, f, g, h]` (see [`col`]).
+/// Regression coefficients `θ = [a, b, c, d, e, f, g, h, i, j]` (see [`col`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Theta(pub [f64; col::COUNT]);
 
@@ -204,7 +221,7 @@ impl Theta {
 
 /// Which coefficients a model structure identifies and renders: a bit per [`col`] index.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub struct Columns(u8);
+pub struct Columns(u16);
 
 impl Columns {
     /// No coefficient (free space).
@@ -212,13 +229,31 @@ impl Columns {
 
     /// Builds a set from column indices.
     pub const fn of(indices: &[usize]) -> Columns {
-        let mut bits = 0u8;
+        let mut bits = 0u16;
         let mut i = 0;
         while i < indices.len() {
             bits |= 1 << indices[i];
             i += 1;
         }
         Columns(bits)
+    }
+
+    /// These columns and column `i`.
+    pub const fn with(self, i: usize) -> Columns {
+        if i < col::COUNT {
+            Columns(self.0 | 1 << i)
+        } else {
+            self
+        }
+    }
+
+    /// These columns without column `i`.
+    pub const fn without(self, i: usize) -> Columns {
+        if i < col::COUNT {
+            Columns(self.0 & !(1 << i))
+        } else {
+            self
+        }
     }
 
     /// Whether column `i` is identified.
@@ -432,11 +467,11 @@ mod tests {
             // x(t) = Re(e), F(t) = Re(h e); derivatives multiply by iω.
             let x = |n: i32| (iw.powi(n) * e).re;
             let f = |n: i32| (iw.powi(n) * h * e).re;
-            let psi = [-x(3), -x(2), -x(1), -x(0), -f(2), -f(1), 0.0, 0.0];
+            let psi = [-x(3), -x(2), -x(1), -x(0), -f(2), -f(1), 0.0, 0.0, 0.0, 0.0];
             let y = f(0);
             assert!((theta.predict(&psi) - y).abs() < 1e-9 * (1.0 + y.abs()));
             // And F_op (the force the tool pushes with) does not satisfy it.
-            let psi_op = [-x(3), -x(2), -x(1), -x(0), f(2), f(1), 0.0, 0.0];
+            let psi_op = [-x(3), -x(2), -x(1), -x(0), f(2), f(1), 0.0, 0.0, 0.0, 0.0];
             assert!((theta.predict(&psi_op) + y).abs() > 1e-3);
         }
     }

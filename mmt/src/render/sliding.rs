@@ -25,6 +25,11 @@ pub struct SlidingState {
     pub last_input: [f64; 2],
     /// Smoothed parameters being rendered (before renderability/Colgate adjustments).
     pub current: Option<Physical>,
+    /// The contact's onset, while in contact: `[x, ẋ − ẋ_m, ξ_m]` then (tool position [m], tool
+    /// velocity relative to the mass [m/s], mass position [m]). The anchor is placed from it
+    /// with the parameters rendered now, so an onset rendered with an early estimate does not
+    /// leave a ground spring preloaded by that estimate's `b2/k2` for the whole contact.
+    pub onset: Option<[f64; 3]>,
 }
 
 /// Renders the force of a sliding flexible object on one axis. Force on the tool, newtons.
@@ -85,6 +90,10 @@ impl SlidingMassRenderer {
             let s = &mut self.state;
             if in_contact && !s.in_contact {
                 s.anchor_m = x - s.mass_position_m;
+                s.onset = Some([x, v - s.mass_velocity_m_per_s, s.mass_position_m]);
+            }
+            if !in_contact {
+                s.onset = None;
             }
             s.in_contact = in_contact;
             s.last_input = [x - s.anchor_m, v];
@@ -98,19 +107,7 @@ impl SlidingMassRenderer {
         let rendered = self.adjust(&current);
         let h = self.config.step_s();
         let s = &mut self.state;
-        if in_contact && !s.in_contact {
-            // Contact onset: place the anchor so the contact force starts from exactly 0,
-            // k2 (ξ − ξ_m) + b2 (v − v_m) = 0, keeping the mass where free motion left it.
-            let dv = v - s.mass_velocity_m_per_s;
-            let preload = if rendered.k_contact_n_per_m > 0.0 {
-                -rendered.b_contact_ns_per_m * dv / rendered.k_contact_n_per_m
-            } else {
-                0.0
-            };
-            s.anchor_m = x - s.mass_position_m - preload;
-            s.last_input = [x - s.anchor_m, v];
-        }
-        s.in_contact = in_contact;
+        place_anchor(s, x, v, in_contact, &rendered);
         let u1 = [x - s.anchor_m, v];
         let mut sys = rendered;
         if !in_contact {
@@ -237,6 +234,42 @@ impl SlidingMassRenderer {
         s.mass_position_m = smooth(s.mass_position_m, target_xm, gain);
         s.mass_velocity_m_per_s = smooth(s.mass_velocity_m_per_s, mass_velocity_m_per_s, gain);
     }
+}
+
+/// The contact bookkeeping of a rendered tick: at the onset the anchor from the onset state;
+/// in contact the onset's anchor with the parameters rendered now (the parameters moved; the
+/// last input moves with it, so the step interpolates no jump); out of contact no onset.
+/// Largest move of the anchor per tick while in contact [m] (5 mm/s at 1 kHz).
+pub(crate) const MAX_ANCHOR_STEP_M: f64 = 5e-6;
+
+fn place_anchor(s: &mut SlidingState, x: f64, v: f64, in_contact: bool, rendered: &Physical) {
+    if in_contact && !s.in_contact {
+        s.onset = Some([x, v - s.mass_velocity_m_per_s, s.mass_position_m]);
+        s.anchor_m = anchor(s.onset, rendered).unwrap_or(x - s.mass_position_m);
+        s.last_input = [x - s.anchor_m, v];
+    } else if in_contact && let Some(a) = anchor(s.onset, rendered) {
+        let step = (a - s.anchor_m).clamp(-MAX_ANCHOR_STEP_M, MAX_ANCHOR_STEP_M);
+        s.last_input[0] -= step;
+        s.anchor_m += step;
+    }
+    if !in_contact {
+        s.onset = None;
+    }
+    s.in_contact = in_contact;
+}
+
+/// Contact onset: the anchor that makes the contact force start from exactly 0,
+/// `k2 (ξ − ξ_m) + b2 (v − v_m) = 0`, the mass where free motion left it; `None` without an
+/// onset.
+fn anchor(onset: Option<[f64; 3]>, p: &Physical) -> Option<f64> {
+    let [x, dv, xm] = onset?;
+    let preload = if p.k_contact_n_per_m > 0.0 {
+        -p.b_contact_ns_per_m * dv / p.k_contact_n_per_m
+    } else {
+        0.0
+    };
+    let a = x - xm - preload;
+    a.is_finite().then_some(a)
 }
 
 fn blend(c: &Physical, t: &Physical, alpha: f64) -> Physical {

@@ -16,14 +16,26 @@ impl ColumnScales {
     pub const UNIT: ColumnScales = ColumnScales([1.0; N]);
 
     /// Scales of the regressor under a sinusoid of amplitude `position_m` [m] at `omega_rad_s`
-    /// [rad/s] giving a force amplitude `force_n` [N]: `[Xω³, Xω², Xω, X, Fω², Fω, 1, ω]`, each
-    /// rounded to the nearest power of two. Non-positive or non-finite inputs give `None`.
+    /// [rad/s] giving a force amplitude `force_n` [N]: `[Xω³, Xω², Xω, X, Fω², Fω, 1, ω, 1, 1]`, each
+    /// rounded to the nearest power of two (the constant columns: 1). Non-positive or
+    /// non-finite inputs give `None`.
     pub fn for_excitation(position_m: f64, force_n: f64, omega_rad_s: f64) -> Option<ColumnScales> {
         let (x, f, w) = (position_m, force_n, omega_rad_s);
         if ![x, f, w].iter().all(|v| v.is_finite() && *v > 0.0) {
             return None;
         }
-        let raw = [x * w * w * w, x * w * w, x * w, x, f * w * w, f * w, 1.0, w];
+        let raw = [
+            x * w * w * w,
+            x * w * w,
+            x * w,
+            x,
+            f * w * w,
+            f * w,
+            1.0,
+            w,
+            1.0,
+            1.0,
+        ];
         Some(ColumnScales(
             raw.map(|v| 2f64.powi(v.log2().round() as i32)),
         ))

@@ -50,6 +50,7 @@ mod tests;
 
 use nalgebra::SMatrix;
 
+use crate::model::backsolve::Information;
 use crate::model::{Columns, Theta, col};
 pub use config::{ColumnScales, RlsConfig, RlsError};
 use config::{check_p0, validate};
@@ -122,6 +123,8 @@ pub struct Rls {
     /// EWMA of `e²` and of `y²`, and the last a-priori error.
     err2: f64,
     out2: f64,
+    /// `Σₖ λᵏ yₖ²` with the forgetting the covariance had [N²].
+    out_energy: f64,
     last_error: f64,
     cusum: Cusum,
     counts: RlsCounts,
@@ -134,7 +137,14 @@ impl Rls {
         let mut idx = [0; N];
         let mut inv_scale = [0.0; N];
         let mut n = 0;
-        for i in config.columns.indices() {
+        // The constant columns first: then their covariance can be reset on its own
+        // ([`Rls::reset_intercepts`]).
+        let constants = [col::I, col::J];
+        let first = constants
+            .into_iter()
+            .filter(|&i| config.columns.contains(i));
+        let rest = config.columns.without(col::I).without(col::J).indices();
+        for i in first.chain(rest) {
             idx[n] = i;
             inv_scale[n] = 1.0 / config.scales.0[i];
             n += 1;
@@ -149,6 +159,7 @@ impl Rls {
             d: [0.0; N],
             err2: 0.0,
             out2: 0.0,
+            out_energy: 0.0,
             last_error: 0.0,
             cusum: Cusum::new(config.cusum),
             counts: RlsCounts::default(),
@@ -215,6 +226,9 @@ impl Rls {
             return Outcome::CovarianceReset;
         }
         self.counts.updates += 1;
+        // The information was forgotten by λ this update (D ← D/λ): the energy it was gathered
+        // with is forgotten alike.
+        self.out_energy = lambda * self.out_energy + y * y;
         let w = 1.0 / self.config.error_time_constant_samples;
         self.err2 += w * (e * e - self.err2);
         self.out2 += w * (y * y - self.out2);
@@ -238,9 +252,60 @@ impl Rls {
         Ok(())
     }
 
+    /// Restarts the constant columns `i`, `j` (a new contact episode moves them: see
+    /// [`col::I`]): their estimates become `values` [N] (a non-finite value keeps the old one)
+    /// and their variances `p0` (scaled units), independent of the other coefficients, whose
+    /// estimates and covariance are kept. Exact in U-D form: with the constants first,
+    /// `P = Σⱼ dⱼ uⱼ uⱼᵀ` with `U` unit upper triangular, and setting the constants' rows of `U`
+    /// to unit rows drops exactly their cross-covariances, leaving the rest of `P` unchanged. No
+    /// effect without constant columns or when `p0` is not positive and finite.
+    pub fn reset_intercepts(&mut self, values: [f64; 2], p0: f64) {
+        if !(p0.is_finite() && p0 > 0.0) {
+            return;
+        }
+        let k = self.idx[..self.n]
+            .iter()
+            .take_while(|&&i| i == col::I || i == col::J)
+            .count();
+        for r in 0..k {
+            let axis = usize::from(self.idx[r] == col::J);
+            if values[axis].is_finite() {
+                self.theta_s[r] = values[axis] / self.inv_scale[r];
+            }
+            for j in r + 1..self.n {
+                self.u[r][j] = 0.0;
+            }
+            self.d[r] = p0;
+        }
+    }
+
     /// Mutes the new-object detector for the next `samples` updates (see [`Cusum::mute`]).
     pub fn mute_detector(&mut self, samples: u32) {
         self.cusum.mute(samples);
+    }
+
+    /// The information the data gave about the coefficients other than the constants
+    /// ([`Information`]: the constants marginalised out, which with them first in the factor is
+    /// its lower-right block), with the forgotten output energy and the a-priori error power;
+    /// `None` before any update.
+    pub fn information(&self) -> Option<Information> {
+        let k = self.idx[..self.n]
+            .iter()
+            .take_while(|&&i| i == col::I || i == col::J)
+            .count();
+        let n = self.n - k;
+        let mut scale = [0.0; N];
+        for (s, inv) in scale.iter_mut().zip(&self.inv_scale[k..self.n]) {
+            *s = 1.0 / inv;
+        }
+        Information::new(
+            &self.idx[k..self.n],
+            &scale[..n],
+            |i, j| self.u[k + i][k + j],
+            &self.d[k..self.n],
+            self.out_energy,
+            self.err2,
+        )
     }
 
     /// θ̂ in physical units, every [`col`] entry (zero for inactive columns).
@@ -317,6 +382,7 @@ impl Rls {
     }
 
     fn reset_covariance(&mut self, p0: f64) {
+        self.out_energy = 0.0;
         self.u = [[0.0; N]; N];
         self.d = [0.0; N];
         self.d[..self.n].fill(p0);

@@ -441,3 +441,111 @@ fn scales_are_powers_of_two() {
     }
     assert!(ColumnScales::for_excitation(0.0, 1.0, 1.0).is_none());
 }
+
+/// Regressions of a spring-mounted object in two contact episodes: the second begins `x0` away
+/// from where the ground spring rests, so its measured positions are shifted by `x0` (the SVF's
+/// DC gain is 1: `ψ_d = −x_f` shifts by `−x0`, its derivatives not at all). Each row carries its
+/// axis' constant column.
+fn two_episodes(x0: f64) -> (Vec<Regression>, Vec<Regression>) {
+    let object = typical();
+    let first = regressions(&object, &typical_excitation(), 0.0, 10.0, false);
+    let mut second = regressions(&object, &typical_excitation(), 20.0, 10.0, false);
+    for r in &mut second {
+        r.psi[col::D] -= x0;
+    }
+    let axis0 = |v: Vec<Regression>| v.into_iter().map(|r| r.with_constant(0)).collect();
+    (axis0(first), axis0(second))
+}
+
+/// Issue 12, the spring-mounted object: a contact that begins away from the ground spring's
+/// rest adds `d·x0` to the force, which no physical column can represent. Without a constant
+/// column θ is bent to absorb it; with one, restarted at the second onset, θ is exact — and
+/// the restart leaves the other coefficients' covariance as it was.
+#[test]
+fn spring_mounted_offset_per_episode_is_absorbed_by_the_intercept() {
+    let object = typical();
+    assert!(object.k_ground_n_per_m > 0.0);
+    let truth = object.theta().unwrap().0;
+    let cols = no_friction(true);
+    let (first, second) = two_episodes(0.02);
+    let scales = typical_scales();
+
+    let mut plain = Rls::new(config(cols, scales, 0.9995, 1e3)).unwrap();
+    learn_all(&mut plain, &first);
+    learn_all(&mut plain, &second);
+    let bent = active_rel_error(&plain.theta(), &truth, cols);
+
+    let with = cols.with(col::I).with(col::J);
+    let mut rls = Rls::new(config(with, scales, 0.9995, 1e3)).unwrap();
+    learn_all(&mut rls, &first);
+    let before = rls.covariance();
+    let d = rls.theta().0[col::D];
+    let onset = -d * second[0].psi[col::D];
+    rls.reset_intercepts([onset, f64::NAN], 1e3);
+    let after = rls.covariance();
+    for a in cols.indices() {
+        for c in cols.indices() {
+            let (x, y) = (before[(a, c)], after[(a, c)]);
+            assert!(
+                (x - y).abs() <= 1e-9 * (x.abs() + y.abs()) + 1e-300,
+                "P[{a},{c}] {x} → {y}"
+            );
+        }
+        assert_eq!(
+            after[(a, col::I)],
+            0.0,
+            "cross-covariance with i kept at {a}"
+        );
+    }
+    learn_all(&mut rls, &second);
+    let err = active_rel_error(&rls.theta(), &truth, cols);
+    eprintln!("offset 2 cm: θ error without intercept {bent:.2e}, with {err:.2e}");
+    assert!(
+        bent > 0.05,
+        "without an intercept θ should be bent, error {bent}"
+    );
+    assert!(err < 1e-3, "with the intercept θ error {err}");
+    let i = rls.theta().0[col::I];
+    let want = truth[col::D] * 0.02;
+    assert!(
+        (i - want).abs() < 1e-3 * want,
+        "intercept {i} vs d·x0 {want}"
+    );
+}
+
+/// The information the RLS reports is the data's: `δᵀP⁻¹δ` is how much worse `θ̂ + δ` predicts
+/// the very data it was learnt from (λ = 1, a weak prior), and the output energy is `Σ y²`.
+#[test]
+fn information_distance_is_the_added_squared_error_on_the_data() {
+    let cols = no_friction(true);
+    let data = typical_data(5.0);
+    let mut rls = Rls::new(config(cols, typical_scales(), 1.0, 1e6)).unwrap();
+    learn_all(&mut rls, &data);
+    let info = rls.information().unwrap();
+    let theta = rls.theta().0;
+    let sse = |t: &[f64; col::COUNT]| -> f64 {
+        data.iter()
+            .map(|r| {
+                let p: f64 = (0..col::COUNT).map(|i| r.psi[i] * t[i]).sum();
+                (r.y - p).powi(2)
+            })
+            .sum()
+    };
+    let energy: f64 = data.iter().map(|r| r.y * r.y).sum();
+    assert!((info.output_energy() - energy).abs() < 1e-9 * energy);
+    for (k, scale) in [(0usize, 0.01), (3, 0.03), (5, -0.02)] {
+        let mut delta = [0.0; col::COUNT];
+        for i in cols.indices() {
+            delta[i] = scale * theta[i] * if (i + k) % 2 == 0 { 1.0 } else { -0.5 };
+        }
+        let moved: [f64; col::COUNT] = std::array::from_fn(|i| theta[i] + delta[i]);
+        let want = sse(&moved) - sse(&theta);
+        let got = info.distance2(&delta);
+        assert!(
+            (got - want).abs() < 1e-4 * want,
+            "δ {k}: information {got} vs added error {want}"
+        );
+        let rel = info.relative(&delta);
+        assert!((rel - (want / energy).sqrt()).abs() < 1e-4 * rel);
+    }
+}

@@ -38,7 +38,8 @@
 //! r2_m = 0.006
 //! r3_m = 0.03
 //! [sensors]
-//! preset = "franka-like"      # franka-like | clean
+//! preset = "franka-like"      # franka-like | arm-wrench | wrist-ft | clean
+//! force_sd_n = 0.05           # optional: any term of the preset, set on its own
 //! [limits]                    # optional, each key too (defaults: node::MotionLimits)
 //! workspace_min_m = [-0.25, -0.25, -0.25]
 //! workspace_max_m = [0.25, 0.25, 0.25]
@@ -265,32 +266,118 @@ impl ProxySection {
     }
 }
 
-/// Sensor noise of the simulated bridge.
+/// Sensor noise of the simulated bridge: a preset, and any of its terms set on its own
+/// (every term of [`SensorNoise`] is a field here; a field given replaces the preset's value).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Sensors {
-    /// The preset.
+    /// The preset the fields below start from.
     pub preset: SensorPreset,
+    /// Position quantisation step [m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_resolution_m: Option<f64>,
+    /// Position noise standard deviation [m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_sd_m: Option<f64>,
+    /// Velocity noise standard deviation [m/s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_sd_m_per_s: Option<f64>,
+    /// Force noise standard deviation [N].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_sd_n: Option<f64>,
+    /// Constant force offset on every axis [N].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_bias_n: Option<f64>,
+    /// Change of the force offset with the axis position [N/m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_bias_gradient_n_per_m: Option<f64>,
+    /// Change of the force offset with time [N/s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_bias_drift_n_per_s: Option<f64>,
 }
 
-/// Sensor-noise presets.
+/// Sensor-noise presets ([`SensorNoise`]'s constants say what each assumes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SensorPreset {
     /// 1 µm quantisation, 2 µm / 1 mm/s / 0.02 N noise, 0.05 N force bias.
     #[default]
     FrankaLike,
+    /// An arm's model-based wrench estimate (assumed): 0.2 N noise, a 1 N bias drifting with
+    /// the position (5 N/m) and in time (1 mN/s).
+    ArmWrench,
+    /// A wrist force/torque sensor (assumed): 0.01 N noise, a 0.3 N bias drifting 0.5 mN/s.
+    WristFt,
     /// No noise.
     Clean,
 }
 
-impl Sensors {
-    /// The noise model.
-    pub fn noise(&self) -> SensorNoise {
-        match self.preset {
+impl SensorPreset {
+    /// Every preset, for benchmarks.
+    pub const ALL: [SensorPreset; 4] = [
+        SensorPreset::FrankaLike,
+        SensorPreset::ArmWrench,
+        SensorPreset::WristFt,
+        SensorPreset::Clean,
+    ];
+
+    /// The name a scene uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            SensorPreset::FrankaLike => "franka-like",
+            SensorPreset::ArmWrench => "arm-wrench",
+            SensorPreset::WristFt => "wrist-ft",
+            SensorPreset::Clean => "clean",
+        }
+    }
+
+    /// The preset of a name, if it is one.
+    pub fn parse(name: &str) -> Option<SensorPreset> {
+        SensorPreset::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// The preset's levels.
+    pub fn noise(self) -> SensorNoise {
+        match self {
             SensorPreset::FrankaLike => SensorNoise::FRANKA_LIKE,
+            SensorPreset::ArmWrench => SensorNoise::ARM_WRENCH,
+            SensorPreset::WristFt => SensorNoise::WRIST_FT,
             SensorPreset::Clean => SensorNoise::CLEAN,
         }
+    }
+}
+
+impl Sensors {
+    /// Sensors of a preset, no field changed.
+    pub fn preset(preset: SensorPreset) -> Sensors {
+        Sensors {
+            preset,
+            ..Sensors::default()
+        }
+    }
+
+    /// The noise model: the preset's, with the fields given replacing its values.
+    pub fn noise(&self) -> SensorNoise {
+        let mut n = self.preset.noise();
+        let set = |v: &mut f64, o: Option<f64>| {
+            if let Some(o) = o {
+                *v = o;
+            }
+        };
+        set(&mut n.position_resolution_m, self.position_resolution_m);
+        set(&mut n.position_sd_m, self.position_sd_m);
+        set(&mut n.velocity_sd_m_per_s, self.velocity_sd_m_per_s);
+        set(&mut n.force_sd_n, self.force_sd_n);
+        set(&mut n.force_bias_n, self.force_bias_n);
+        set(
+            &mut n.force_bias_gradient_n_per_m,
+            self.force_bias_gradient_n_per_m,
+        );
+        set(
+            &mut n.force_bias_drift_n_per_s,
+            self.force_bias_drift_n_per_s,
+        );
+        n
     }
 }
 

@@ -20,6 +20,10 @@ impl Scene {
             c.filter.svf.cutoff_hz = self.model.filter_cutoff_hz;
             c.filter.svf.sample_period_s = 1.0 / rate;
             c.forgetting = self.model.forgetting;
+            // A constant force per axis when the object has a static stiffness on the
+            // tangential plane: a spring-mounted object's force depends on where the contact
+            // began relative to its ground spring's rest (see `mmt::model::col::I`).
+            c.intercept = axes == 2 && structure.columns().contains(mmt::model::col::D);
             // Expected excitation: a few centimetres at about 1 Hz, force at the contact stiffness.
             let k = self.environment.k_contact_n_per_m;
             let x = if structure == Structure::KelvinVoigt {

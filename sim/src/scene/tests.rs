@@ -179,6 +179,49 @@ fn physical_upper_limits_and_the_karnopp_bound_say_the_range() {
     }
 }
 
+/// Every noise term is a scene field: a preset, then any term set on its own; a bad value is
+/// named with its field.
+#[test]
+fn every_noise_term_is_a_scene_field() {
+    let s = with(
+        "preset = \"franka-like\"",
+        "preset = \"arm-wrench\"\nforce_sd_n = 0.05\nforce_bias_gradient_n_per_m = 0.0\n\
+         position_resolution_m = 0.0\nposition_sd_m = 1e-5\nvelocity_sd_m_per_s = 0.002\n\
+         force_bias_n = 0.5\nforce_bias_drift_n_per_s = 0.0",
+    )
+    .unwrap();
+    assert_eq!(
+        s.sensors.noise(),
+        SensorNoise {
+            position_resolution_m: 0.0,
+            position_sd_m: 1e-5,
+            velocity_sd_m_per_s: 0.002,
+            force_sd_n: 0.05,
+            force_bias_n: 0.5,
+            force_bias_gradient_n_per_m: 0.0,
+            force_bias_drift_n_per_s: 0.0,
+        }
+    );
+    let arm = with("preset = \"franka-like\"", "preset = \"arm-wrench\"").unwrap();
+    assert_eq!(arm.sensors.noise(), SensorNoise::ARM_WRENCH);
+    let wrist = with("preset = \"franka-like\"", "preset = \"wrist-ft\"").unwrap();
+    assert_eq!(wrist.sensors.noise(), SensorNoise::WRIST_FT);
+    let e = with(
+        "preset = \"franka-like\"",
+        "preset = \"franka-like\"\nforce_sd_n = -0.1",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("sensors.force_sd_n = -0.1"), "{e}");
+    let e = with("preset = \"franka-like\"", "preset = \"arm\"")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("arm-wrench"), "{e}");
+    for p in SensorPreset::ALL {
+        assert_eq!(SensorPreset::parse(p.name()), Some(p));
+    }
+}
+
 /// The exp-1 scene with its `[cloud]` section replaced by `cloud`.
 fn with_cloud(cloud: &str) -> Result<Scene, SceneError> {
     let start = EXP1_TOML.find("[cloud]").unwrap();

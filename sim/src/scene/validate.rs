@@ -151,7 +151,25 @@ impl Scene {
         if self.cloud.source == CloudKind::Plane {
             self.validate_cloud()?;
         }
+        self.validate_sensors()?;
         self.validate_model()
+    }
+
+    /// `[sensors]`: every noise term, named by its scene field.
+    fn validate_sensors(&self) -> Result<(), SceneError> {
+        let Some((name, value, expected)) = self.sensors.noise().invalid_field() else {
+            return Ok(());
+        };
+        let name = match name {
+            "noise.position_resolution_m" => "sensors.position_resolution_m",
+            "noise.position_sd_m" => "sensors.position_sd_m",
+            "noise.velocity_sd_m_per_s" => "sensors.velocity_sd_m_per_s",
+            "noise.force_sd_n" => "sensors.force_sd_n",
+            "noise.force_bias_n" => "sensors.force_bias_n",
+            "noise.force_bias_gradient_n_per_m" => "sensors.force_bias_gradient_n_per_m",
+            _ => "sensors.force_bias_drift_n_per_s",
+        };
+        field(name, value, false, expected)
     }
 
     /// `[environment]`: signs, the Karnopp order, physical upper limits, and what an anchored

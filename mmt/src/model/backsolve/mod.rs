@@ -16,15 +16,17 @@
 //!    the identification band cannot see (`m → 0`) as not identifiable instead of inventing
 //!    numbers, and `k1 ≫ k2` (notes §2.5: condition 171, errors amplified 60×) as low confidence.
 
+mod information;
 mod problem;
 mod roots;
 
+pub use information::Information;
+pub(crate) use roots::{cubic_roots, quadratic_roots};
+
 use super::{KelvinVoigt, Physical, Structure, Theta, col};
+use problem::Problem;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
-
-use problem::Problem;
-use roots::{cubic_roots, quadratic_roots};
 
 /// Settings of the back-solve.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -97,6 +99,41 @@ pub struct BackSolved {
     pub condition: f64,
     /// Whether the numbers can be trusted.
     pub confidence: Confidence,
+    /// How well the data pin each parameter down, when the back-solve was given the data's
+    /// [`Information`] (a sliding mass only).
+    pub spread: Option<Spread>,
+}
+
+/// The standard deviation of each parameter's logarithm (≈ its relative standard error) given
+/// the data so far: how well the motion excited it (issue 12, excitation awareness). A parameter
+/// the motion never excited has a large spread; one the structure leaves out has 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Spread {
+    /// m.
+    pub mass: f64,
+    /// k1 (0 when the structure has none).
+    pub k_ground: f64,
+    /// b1.
+    pub b_ground: f64,
+    /// k2.
+    pub k_contact: f64,
+    /// b2.
+    pub b_contact: f64,
+}
+
+impl Spread {
+    /// The largest spread and its parameter's name.
+    pub fn worst(&self) -> (&'static str, f64) {
+        [
+            ("m", self.mass),
+            ("k1", self.k_ground),
+            ("b1", self.b_ground),
+            ("k2", self.k_contact),
+            ("b2", self.b_contact),
+        ]
+        .into_iter()
+        .fold(("m", 0.0), |a, b| if b.1 > a.1 { b } else { a })
+    }
 }
 
 /// Why θ could not be turned into physical parameters.
@@ -143,6 +180,31 @@ pub fn back_solve(
     weights: Option<&[f64; col::COUNT]>,
     config: &BackSolveConfig,
 ) -> Result<BackSolved, BackSolveError> {
+    solve(structure, theta, weights, None, config)
+}
+
+/// Recovers the physical parameters of `structure` from θ, measuring the misfit by the data's
+/// own information ([`Information`]): the set returned predicts the data the estimate came from
+/// as closely as a physical set can, its [`BackSolved::residual`] is the RMS prediction error
+/// it adds relative to the RMS output, and its [`BackSolved::spread`] says how well each
+/// parameter is pinned down. Directions the motion did not excite neither pull the solution
+/// nor count against it, whatever the object's scales.
+pub fn back_solve_informed(
+    structure: Structure,
+    theta: &Theta,
+    information: &Information,
+    config: &BackSolveConfig,
+) -> Result<BackSolved, BackSolveError> {
+    solve(structure, theta, None, Some(information), config)
+}
+
+fn solve(
+    structure: Structure,
+    theta: &Theta,
+    weights: Option<&[f64; col::COUNT]>,
+    information: Option<&Information>,
+    config: &BackSolveConfig,
+) -> Result<BackSolved, BackSolveError> {
     let cols = structure.columns();
     for i in cols.indices() {
         let v = theta.0[i];
@@ -159,6 +221,7 @@ pub fn back_solve(
             residual: 0.0,
             condition: 1.0,
             confidence: Confidence::Identified,
+            spread: None,
         }),
         Structure::KelvinVoigt => Ok(BackSolved {
             params: Params::KelvinVoigt(KelvinVoigt {
@@ -168,19 +231,26 @@ pub fn back_solve(
             residual: 0.0,
             condition: 1.0,
             confidence: Confidence::Identified,
+            spread: None,
         }),
         Structure::SlidingMass {
             ground_spring,
             friction,
-        } => sliding_mass(theta, ground_spring, friction, weights, config),
+        } => sliding_mass(
+            theta,
+            (ground_spring, friction),
+            weights,
+            information,
+            config,
+        ),
     }
 }
 
 fn sliding_mass(
     theta: &Theta,
-    ground_spring: bool,
-    friction: bool,
+    (ground_spring, friction): (bool, bool),
     weights: Option<&[f64; col::COUNT]>,
+    information: Option<&Information>,
     config: &BackSolveConfig,
 ) -> Result<BackSolved, BackSolveError> {
     let t = &theta.0;
@@ -199,7 +269,14 @@ fn sliding_mass(
             });
         }
     }
-    let problem = Problem::new(theta, ground_spring, friction, weights, config.band_rad_s);
+    let problem = Problem::new(
+        theta,
+        ground_spring,
+        friction,
+        weights,
+        information,
+        config.band_rad_s,
+    );
     let best = candidates(t, ground_spring)
         .filter_map(|k2| problem.start_from_k2(k2))
         .map(|q| (problem.cost(&q), q))
@@ -208,8 +285,17 @@ fn sliding_mass(
         .1;
     let q = problem.levenberg_marquardt(best, config.max_iterations);
     let physical = problem.physical(&q);
+    // With the data's information the spread says how well the mass is known; without, the
+    // band decides whether it can be seen at all.
+    let spread = problem.spread(&q).map(|s| Spread {
+        mass: s[0],
+        b_ground: s[1],
+        k_contact: s[2],
+        b_contact: s[3],
+        k_ground: if ground_spring { s[4] } else { 0.0 },
+    });
     let visibility = mass_visibility(&physical, config.band_rad_s);
-    if !(visibility >= config.min_mass_visibility) {
+    if information.is_none() && !(visibility >= config.min_mass_visibility) {
         return Err(not_identifiable(visibility));
     }
     let condition = problem.condition(&q);
@@ -220,9 +306,10 @@ fn sliding_mass(
     };
     Ok(BackSolved {
         params: Params::SlidingMass(physical),
-        residual: problem.relative_residual(&physical),
+        residual: problem.relative_residual(&q, &physical),
         condition,
         confidence,
+        spread,
     })
 }
 

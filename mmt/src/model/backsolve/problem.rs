@@ -1,31 +1,49 @@
-//! The weighted least-squares problem of the back-solve in log-parameters: a candidate's start
-//! point, the Levenberg–Marquardt polish, the conditioning of `∂ log θ/∂ log φ` and the
-//! relative residual (numerics notes §2.3, steps 3–5).
+//! The least-squares problem of the back-solve in log-parameters, and its Levenberg–Marquardt
+//! solver.
 
-use crate::model::{Physical, Theta, col};
+use super::super::{Physical, Theta, col};
+
+use super::information::Information;
 
 /// Number of linear-part unknowns: m, b1, k2, b2 and (with a ground spring) k1.
-const MAX_P: usize = 5;
+pub(super) const MAX_P: usize = 5;
+
+/// Most residuals: one per coefficient.
+const MAX_R: usize = col::COUNT;
+
+/// How the misfit `θ̂ − θ(φ)` is measured.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Metric<'a> {
+    /// Per-coefficient weights on the linear part (`a`–`f`); friction (`Fc`) is fitted after it
+    /// from `g` and `h` alone.
+    Diagonal,
+    /// The data's information ([`Information`]): every coefficient the structure has, friction
+    /// included (`Fc` solved in closed form at each step), weighted by how much the data
+    /// constrain it — in newtons² of prediction error.
+    Information(&'a Information),
+}
 
 /// The weighted least-squares problem in log-parameters `q = log [m, b1, k2, b2, (k1)]`.
-pub(super) struct Problem {
+pub(super) struct Problem<'a> {
     theta: [f64; col::COUNT],
     weight: [f64; col::COUNT],
-    /// Linear-part columns in the fit.
+    metric: Metric<'a>,
+    /// Linear-part columns in the diagonal fit.
     rows: [usize; 6],
     n_rows: usize,
-    p: usize,
+    pub(super) p: usize,
     ground_spring: bool,
     friction: bool,
     band_rad_s: f64,
 }
 
-impl Problem {
+impl<'a> Problem<'a> {
     pub(super) fn new(
         theta: &Theta,
         ground_spring: bool,
         friction: bool,
         weights: Option<&[f64; col::COUNT]>,
+        information: Option<&'a Information>,
         band_rad_s: f64,
     ) -> Self {
         let t = theta.0;
@@ -47,6 +65,7 @@ impl Problem {
         Problem {
             theta: t,
             weight,
+            metric: information.map_or(Metric::Diagonal, Metric::Information),
             rows,
             n_rows,
             p: if ground_spring { 5 } else { 4 },
@@ -88,19 +107,28 @@ impl Problem {
         q.iter().all(|v| v.is_finite()).then_some(q)
     }
 
+    /// The physical set of `q`, with `Fc` fitted to it.
     pub(super) fn physical(&self, q: &[f64; MAX_P]) -> Physical {
-        let mut p = Physical {
+        let mut p = self.linear(q);
+        if self.friction {
+            p.coulomb_n = match self.metric {
+                Metric::Diagonal => self.coulomb(&p),
+                Metric::Information(info) => self.informed(info, &p, &mut [0.0; MAX_R]).1,
+            };
+        }
+        p
+    }
+
+    /// The set of `q` without friction.
+    fn linear(&self, q: &[f64; MAX_P]) -> Physical {
+        Physical {
             mass_kg: q[0].exp(),
             b_ground_ns_per_m: q[1].exp(),
             k_contact_n_per_m: q[2].exp(),
             b_contact_ns_per_m: q[3].exp(),
             k_ground_n_per_m: if self.ground_spring { q[4].exp() } else { 0.0 },
             coulomb_n: 0.0,
-        };
-        if self.friction {
-            p.coulomb_n = self.coulomb(&p);
         }
-        p
     }
 
     /// `Fc` by weighted LS from `g = k2 Fc/S`, `h = b2 Fc/S`, clamped at 0.
@@ -113,9 +141,44 @@ impl Problem {
         (num / den).max(0.0)
     }
 
-    fn residuals(&self, q: &[f64; MAX_P], out: &mut [f64; 6]) {
-        let mut p = self.physical(q);
-        p.coulomb_n = 0.0;
+    /// The whitened residual of the frictionless set `p` with the best `Fc ≥ 0`:
+    /// `r(Fc) = r₀ + Fc·v` is linear in `Fc`, so `Fc = max(0, −r₀·v/|v|²)`. Returns the
+    /// residual count and `Fc`.
+    fn informed(&self, info: &Information, p: &Physical, out: &mut [f64; MAX_R]) -> (usize, f64) {
+        let h = p
+            .theta()
+            .map(|t| t.0)
+            .unwrap_or([f64::INFINITY; col::COUNT]);
+        let mut delta = [0.0; col::COUNT];
+        for i in 0..col::COUNT {
+            if i != col::I && i != col::J {
+                delta[i] = self.theta[i] - h[i];
+            }
+        }
+        let n = info.whiten(&delta, out);
+        if !(self.friction && info.contains(col::G)) {
+            return (n, 0.0);
+        }
+        let s = p.stiffness_sum();
+        let mut unit = [0.0; col::COUNT];
+        unit[col::G] = -p.k_contact_n_per_m / s;
+        unit[col::H] = -p.b_contact_ns_per_m / s;
+        let mut v = [0.0; MAX_R];
+        info.whiten(&unit, &mut v);
+        let vv: f64 = v[..n].iter().map(|x| x * x).sum();
+        let rv: f64 = (0..n).map(|k| out[k] * v[k]).sum();
+        let fc = if vv > 0.0 { (-rv / vv).max(0.0) } else { 0.0 };
+        for k in 0..n {
+            out[k] += fc * v[k];
+        }
+        (n, if fc.is_finite() { fc } else { 0.0 })
+    }
+
+    fn residuals(&self, q: &[f64; MAX_P], out: &mut [f64; MAX_R]) -> usize {
+        let p = self.linear(q);
+        if let Metric::Information(info) = self.metric {
+            return self.informed(info, &p, out).0;
+        }
         let h = p
             .theta()
             .map(|t| t.0)
@@ -123,12 +186,13 @@ impl Problem {
         for (k, &i) in self.rows[..self.n_rows].iter().enumerate() {
             out[k] = self.weight[i] * (self.theta[i] - h[i]);
         }
+        self.n_rows
     }
 
     pub(super) fn cost(&self, q: &[f64; MAX_P]) -> f64 {
-        let mut r = [0.0; 6];
-        self.residuals(q, &mut r);
-        let c: f64 = r[..self.n_rows].iter().map(|v| v * v).sum();
+        let mut r = [0.0; MAX_R];
+        let n = self.residuals(q, &mut r);
+        let c: f64 = r[..n].iter().map(|v| v * v).sum();
         if c.is_finite() { c } else { f64::INFINITY }
     }
 
@@ -139,13 +203,13 @@ impl Problem {
         mut q: [f64; MAX_P],
         iterations: usize,
     ) -> [f64; MAX_P] {
-        let (n, p) = (self.n_rows, self.p);
+        let p = self.p;
         let mut cost = self.cost(&q);
         let mut mu = 1e-3;
-        let mut r = [0.0; 6];
+        let mut r = [0.0; MAX_R];
         for _ in 0..iterations {
-            let jac = self.jacobian(&q);
-            self.residuals(&q, &mut r);
+            let (jac, _) = self.jacobian(&q);
+            let n = self.residuals(&q, &mut r);
             // Normal equations (JᵀJ + μ diag JᵀJ) δ = −Jᵀr.
             let mut jtj = [[0.0; MAX_P]; MAX_P];
             let mut jtr = [0.0; MAX_P];
@@ -189,22 +253,48 @@ impl Problem {
         q
     }
 
-    /// `∂r/∂q` by central differences.
-    fn jacobian(&self, q: &[f64; MAX_P]) -> [[f64; MAX_P]; 6] {
-        let mut jac = [[0.0; MAX_P]; 6];
+    /// `∂r/∂q` by central differences, and the residual count.
+    fn jacobian(&self, q: &[f64; MAX_P]) -> ([[f64; MAX_P]; MAX_R], usize) {
+        let mut jac = [[0.0; MAX_P]; MAX_R];
         let step = 1e-6;
-        let (mut rp, mut rm) = ([0.0; 6], [0.0; 6]);
+        let (mut rp, mut rm) = ([0.0; MAX_R], [0.0; MAX_R]);
+        let mut n = 0;
         for j in 0..self.p {
             let (mut qp, mut qm) = (*q, *q);
             qp[j] += step;
             qm[j] -= step;
-            self.residuals(&qp, &mut rp);
+            n = self.residuals(&qp, &mut rp);
             self.residuals(&qm, &mut rm);
-            for k in 0..self.n_rows {
+            for k in 0..n {
                 jac[k][j] = (rp[k] - rm[k]) / (2.0 * step);
             }
         }
-        jac
+        (jac, n)
+    }
+
+    /// The standard deviation of each log-parameter `q` at the solution, from the data's
+    /// information (`σ² (JᵀJ)⁻¹` with `J` the whitened residual's Jacobian, `Fc` profiled out,
+    /// `σ²` the output's noise variance); `None` for the diagonal metric or a singular `JᵀJ`.
+    pub(super) fn spread(&self, q: &[f64; MAX_P]) -> Option<[f64; MAX_P]> {
+        let Metric::Information(info) = self.metric else {
+            return None;
+        };
+        let (jac, n) = self.jacobian(q);
+        let p = self.p;
+        let mut jtj = [[0.0; MAX_P]; MAX_P];
+        for i in 0..p {
+            for j in 0..p {
+                jtj[i][j] = (0..n).map(|k| jac[k][i] * jac[k][j]).sum();
+            }
+        }
+        let mut out = [0.0; MAX_P];
+        for (i, o) in out.iter_mut().enumerate().take(p) {
+            let mut e = [0.0; MAX_P];
+            e[i] = 1.0;
+            let col = cholesky_solve(&jtj, &e, p)?;
+            *o = (info.noise_variance() * col[i]).sqrt();
+        }
+        out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
     /// Condition number of `∂ log θ/∂ log φ` (rows: fitted coefficients; columns: parameters).
@@ -253,7 +343,10 @@ impl Problem {
             .unwrap_or([f64::NAN; col::COUNT])
     }
 
-    pub(super) fn relative_residual(&self, p: &Physical) -> f64 {
+    pub(super) fn relative_residual(&self, q: &[f64; MAX_P], p: &Physical) -> f64 {
+        if let Metric::Information(info) = self.metric {
+            return (self.cost(q) / info.output_energy()).sqrt();
+        }
         let Some(h) = p.theta() else {
             return f64::INFINITY;
         };
@@ -277,14 +370,15 @@ impl Problem {
 }
 
 /// Power of `s` each coefficient multiplies in its polynomial (`N`, `D` or the friction term).
-const ORDER: [i32; col::COUNT] = [3, 2, 1, 0, 2, 1, 0, 1];
+const ORDER: [i32; col::COUNT] = [3, 2, 1, 0, 2, 1, 0, 1, 0, 0];
 
 /// `Σⱼ |θⱼ| ωʲ` over the polynomial that coefficient `i` belongs to (`D` includes its constant 1).
-fn band_poly(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
+pub(super) fn band_poly(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
     let members: &[usize] = match i {
         col::A | col::B | col::C | col::D => &[col::A, col::B, col::C, col::D],
         col::E | col::F => &[col::E, col::F],
-        _ => &[col::G, col::H],
+        col::G | col::H => &[col::G, col::H],
+        _ => &[col::I, col::J],
     };
     let constant = if matches!(i, col::E | col::F) {
         1.0
@@ -299,7 +393,7 @@ fn band_poly(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
 }
 
 /// The size coefficient `i` would need to contribute as much as its whole polynomial at `w`.
-fn band_scale(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
+pub(super) fn band_scale(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
     band_poly(t, i, w) / w.powi(ORDER[i])
 }
 

@@ -16,7 +16,7 @@ fn gate_theta(p: &Physical) -> Result<Gated, GateRejection> {
 }
 
 /// Numeric oracle: stable poles and `Im(F_op/X)(iω) ≥ 0` on a dense log grid.
-fn numerically_passive(t: &[f64; 8]) -> bool {
+fn numerically_passive(t: &[f64; col::COUNT]) -> bool {
     let (a, b, c, d, e, f) = (t[0], t[1], t[2], t[3], t[4], t[5]);
     if !(e > 0.0 && f > 0.0) || d < 0.0 {
         return false;
@@ -175,7 +175,7 @@ proptest! {
         a in 0.0f64..1.0, b in -2.0f64..2.0, c in -1.0f64..3.0, d in -0.5f64..2.0,
         e in 0.01f64..1.0, f in 0.01f64..2.0,
     ) {
-        let t = [a, b, c, d, e, f, 0.0, 0.0];
+        let t = [a, b, c, d, e, f, 0.0, 0.0, 0.0, 0.0];
         let closed = positive_real(a, b, c, d, e, f).is_ok();
         let numeric = numerically_passive(&t);
         // Borderline cases (P's minimum within rounding of 0) may legitimately differ.
