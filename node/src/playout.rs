@@ -1,20 +1,34 @@
-//! The telerobot's command playout: commands are executed in sample-time order, each when its
-//! turn comes, so a datagram that overtook others (netem's `reorder` sends it at once, a whole
-//! delay early) waits instead of making every command behind it look stale, and a bunch of
-//! commands held up by jitter is played one per tick instead of being skipped.
+//! The telerobot's command playout: the operator's path is played back at a steady offset from
+//! its sample times, so a datagram that overtook others (netem's `reorder` sends it at once, a
+//! whole delay early) waits for its turn, a bunch held up by jitter is played in order, and the
+//! robot is told a smooth path whatever the arrival times.
 //!
-//! A command's turn comes when `sample_time + L ≤ now`, `L` a high (90th) percentile of the lag
+//! The playout time is `τ = now − L`. `L` follows a high (90th) percentile of the lag
 //! `received − sample_time` over the last 128 arrivals (both clocks' offset is in it and cancels).
-//! Every arrival counts toward `L`, duplicates and stale ones included: if only the commands that
-//! were kept counted, early (reordered) arrivals could pull `L` down, make every command in
-//! flight stale, and so keep it down for good. A high percentile makes the jitter buffer a real
-//! one: over a link with jitter J the playout adds up to about 0.8·J of delay and plays commands
-//! evenly; over a steady link (loopback, a fixed netem delay) `L` is the link's lag and in-order
-//! commands run on arrival. Late ones (the slowest tenth) run on arrival unless a newer one has
-//! run; duplicates and commands older than the one executing are dropped. If `L` is too high
-//! (the link's delay just dropped) commands are not held back for long: when nothing has run
-//! for [`MAX_WAIT_NS`] the oldest held command runs, until the window has caught up with the new
-//! lag. Nothing allocates.
+//! Every arrival counts toward it, duplicates and stale ones included: if only the commands that
+//! were kept counted, early (reordered) arrivals could pull it down, make every command in flight
+//! stale, and so keep it down for good. Over a link with jitter J the playout adds up to about
+//! 0.8·J of delay; over a steady link (loopback, a fixed netem delay) it is the link's lag.
+//!
+//! Each tick the robot gets the path at `τ`: the two commands around it interpolated, position
+//! and velocity. A command that is late (its turn came before it did) is bridged by extrapolating
+//! the last one along its velocity, for at most [`MAX_EXTRAPOLATION_NS`]; then the path stops
+//! until it comes. `L` moves toward its estimate by at most [`SLEW`] of the elapsed time, so the
+//! path plays at 1 ± 2 % of real time while it moves, and the velocity handed on is scaled by that
+//! rate: the position the robot is told and its velocity always agree.
+//!
+//! Why (issue 11's soak): `L` used to be the estimate itself, re-taken every 16 arrivals, and the
+//! robot ran the newest due command. The estimate wobbled across tick boundaries, so about one
+//! command in 20 was repeated (the position froze while its velocity said it moved) and the next
+//! skipped (a double step). The estimator fed with that motion saw a sustained misfit and reset
+//! its model about three times a minute; a real arm would have felt the jerk.
+//!
+//! A change of the estimate larger than [`LAG_STEP_NS`] is a change of the link, not jitter: `L`
+//! takes it at once (when it grows, the path waits; when it shrinks, the commands in between are
+//! skipped and counted). When the path has reached no command for [`MAX_WAIT_NS`] while commands
+//! are held (the link's delay just dropped and the window has not seen it yet) it jumps to the
+//! oldest held; it never interpolates across a gap longer than that. `τ` never goes back.
+//! Nothing allocates.
 
 use super::telerobot::CommandSample;
 
@@ -24,9 +38,16 @@ const PENDING: usize = 64;
 const LAGS: usize = 128;
 /// The percentile of the lag that sets the playout time.
 const PERCENTILE: f64 = 0.9;
-/// Arrivals between two estimates of `L`.
+/// Arrivals between two estimates of the lag.
 const ESTIMATE_EVERY: usize = 16;
-/// The longest the robot waits on held commands before running the oldest regardless [ns].
+/// Largest rate at which the playout lag follows its estimate \[1\]: 2 % (20 µs a tick at 1 kHz).
+pub(super) const SLEW: f64 = 0.02;
+/// A step of the lag estimate beyond which `L` takes it at once \[ns\].
+pub(super) const LAG_STEP_NS: i64 = 20_000_000;
+/// How far past the newest command the path is extrapolated along its velocity \[ns\].
+pub(super) const MAX_EXTRAPOLATION_NS: i64 = 10_000_000;
+/// How long the path waits on held commands before jumping to the oldest; the longest gap between
+/// two commands it interpolates across \[ns\].
 pub(super) const MAX_WAIT_NS: i64 = 50_000_000;
 
 /// Orders and times the commands the telerobot executes.
@@ -37,10 +58,18 @@ pub(super) struct Playout {
     lag_count: usize,
     lag_head: usize,
     since_estimate: usize,
+    /// The estimate of the lag \[ns\].
     lag_ns: Option<i64>,
+    /// The estimate `L` last followed \[ns\].
+    taken_ns: Option<i64>,
+    /// The lag the path is played at, `L` \[ns\].
+    play_lag_ns: Option<f64>,
+    /// The playout time of the last tick, and that tick's time \[ns\].
+    last: Option<(i64, i64)>,
+    /// The newest command whose sample time the path has reached.
     current: Option<CommandSample>,
     last_received_ns: Option<i64>,
-    /// When a command last started executing, or when the first command arrived [ns].
+    /// When the path last reached a command, or when the first command arrived \[ns\].
     last_progress_ns: Option<i64>,
 }
 
@@ -49,7 +78,7 @@ pub(super) struct Playout {
 pub(super) enum Push {
     /// Held for its turn.
     Queued,
-    /// Older than, or the same as, one already executed or held.
+    /// Older than, or the same as, one already reached or held.
     Stale,
     /// The buffer was full: the oldest held command was dropped to make room.
     Overflow,
@@ -64,6 +93,9 @@ impl Playout {
             lag_head: 0,
             since_estimate: 0,
             lag_ns: None,
+            taken_ns: None,
+            play_lag_ns: None,
+            last: None,
             current: None,
             last_received_ns: None,
             last_progress_ns: None,
@@ -98,8 +130,8 @@ impl Playout {
         Push::Overflow
     }
 
-    /// Adds one arrival's lag and re-estimates `L` every [`ESTIMATE_EVERY`] arrivals (at once
-    /// for the first).
+    /// Adds one arrival's lag and re-estimates it every [`ESTIMATE_EVERY`] arrivals (at once for
+    /// the first).
     fn record_lag(&mut self, lag_ns: i64) {
         self.lags[self.lag_head] = lag_ns;
         self.lag_head = (self.lag_head + 1) % LAGS;
@@ -115,40 +147,90 @@ impl Playout {
         }
     }
 
-    /// The command to execute at `now_ns` — the newest whose turn has come (older ones are
-    /// skipped), or the oldest held one if nothing has run for [`MAX_WAIT_NS`] — and the number
-    /// skipped.
+    /// The path at `now_ns` (`None` before the first command's turn) and the number of commands
+    /// skipped getting there.
     pub(super) fn advance(&mut self, now_ns: i64) -> (Option<CommandSample>, usize) {
-        let due = self
-            .lag_ns
-            .map_or(i64::MAX, |lag| now_ns.saturating_sub(lag));
-        let held = || self.pending.iter().flatten();
-        let newest_due = held().map(|p| p.sample_time_ns).filter(|&t| t <= due).max();
+        let Some(estimate) = self.lag_ns else {
+            return (None, 0);
+        };
+        let dt = self
+            .last
+            .map_or(0, |(_, then)| now_ns.saturating_sub(then).max(0));
+        // A step of the estimate itself is the link's; anything slower is slewed to.
+        let step = self
+            .taken_ns
+            .is_none_or(|t| estimate.saturating_sub(t).saturating_abs() > LAG_STEP_NS);
+        self.taken_ns = Some(estimate);
+        let lag = match self.play_lag_ns {
+            Some(lag) if !step => {
+                let most = SLEW * dt as f64;
+                lag + (estimate as f64 - lag).clamp(-most, most)
+            }
+            _ => estimate as f64,
+        };
+        let mut tau = now_ns.saturating_sub(lag.round() as i64);
+        if let Some((before, _)) = self.last {
+            tau = tau.max(before);
+        }
+        // Nothing reached for MAX_WAIT_NS while commands are held: the link's delay dropped and
+        // the estimate has not seen it yet. The path jumps to the oldest held command.
         let starving = self
             .last_progress_ns
             .is_some_and(|t| now_ns.saturating_sub(t) >= MAX_WAIT_NS);
-        let run_to = newest_due.or_else(|| {
-            starving
-                .then(|| held().map(|p| p.sample_time_ns).min())
-                .flatten()
-        });
-        let mut skipped = 0;
-        if let Some(newest) = run_to {
-            self.last_progress_ns = Some(now_ns);
-            for slot in &mut self.pending {
-                if let Some(p) = *slot
-                    && p.sample_time_ns <= newest
+        if starving && let Some(oldest) = self.held().map(|p| p.sample_time_ns).min() {
+            tau = tau.max(oldest);
+        }
+        let mut reached: usize = 0;
+        for slot in &mut self.pending {
+            if let Some(p) = *slot
+                && p.sample_time_ns <= tau
+            {
+                reached += 1;
+                self.last_progress_ns = Some(now_ns);
+                if self
+                    .current
+                    .is_none_or(|c| p.sample_time_ns > c.sample_time_ns)
                 {
-                    if p.sample_time_ns == newest {
-                        self.current = Some(p);
-                    } else {
-                        skipped += 1;
-                    }
-                    *slot = None;
+                    self.current = Some(p);
                 }
+                *slot = None;
             }
         }
-        (self.current, skipped)
+        // Not across a gap longer than MAX_WAIT_NS (an outage, or a command that overtook the rest
+        // by a whole delay): the path goes on from the newest command alone until the jump.
+        let next = self
+            .held()
+            .min_by_key(|p| p.sample_time_ns)
+            .copied()
+            .filter(|n| {
+                self.current.is_none_or(|c| {
+                    n.sample_time_ns.saturating_sub(c.sample_time_ns) <= MAX_WAIT_NS
+                })
+            });
+        // With nothing held beyond it, the path goes no further than the extrapolation from the
+        // newest command: a stall raises `L` (the path waits where it stopped), and the slew
+        // brings it back down, instead of a jump when the commands come again.
+        if next.is_none()
+            && let Some(c) = self.current
+        {
+            let limit = c.sample_time_ns.saturating_add(MAX_EXTRAPOLATION_NS);
+            tau = tau.min(limit.max(self.last.map_or(limit, |(before, _)| before)));
+        }
+        // `L` as played: a jump or a wait moves it too, so the slew goes on from where the path is.
+        self.play_lag_ns = Some(now_ns.saturating_sub(tau) as f64);
+        let advanced = self.last.map_or(0, |(before, _)| tau - before);
+        let smooth = advanced as f64 <= (1.0 + SLEW) * dt as f64 + 1.0;
+        let rate = match self.last {
+            Some(_) if dt > 0 && smooth => advanced as f64 / dt as f64,
+            _ => 1.0,
+        };
+        self.last = Some((tau, now_ns));
+        let skipped = if smooth { 0 } else { reached.saturating_sub(1) };
+        (self.current.map(|c| path_at(c, next, tau, rate)), skipped)
+    }
+
+    fn held(&self) -> impl Iterator<Item = &CommandSample> {
+        self.pending.iter().flatten()
     }
 
     /// When the newest command arrived [ns], if any did.
@@ -156,10 +238,51 @@ impl Playout {
         self.last_received_ns
     }
 
-    /// The playout lag `L` [ns], once a command has arrived.
+    /// The lag estimate \[ns\], once a command has arrived.
     #[cfg(test)]
     fn lag_ns(&self) -> Option<i64> {
         self.lag_ns
+    }
+}
+
+/// The path at `tau`, from the newest command reached (`at`) and the next one held, played at
+/// `rate` of real time: interpolated between the two, or extrapolated along `at`'s velocity for
+/// at most [`MAX_EXTRAPOLATION_NS`] (then still). Named after the nearer of the two commands.
+fn path_at(at: CommandSample, next: Option<CommandSample>, tau: i64, rate: f64) -> CommandSample {
+    let lerp = |a: [f64; 3], b: [f64; 3], s: f64| std::array::from_fn(|i| a[i] + s * (b[i] - a[i]));
+    let scale = |v: [f64; 3], s: f64| v.map(|x| x * s);
+    let ahead = tau.saturating_sub(at.sample_time_ns);
+    match next {
+        Some(n) if ahead > 0 => {
+            let span = n.sample_time_ns.saturating_sub(at.sample_time_ns).max(1);
+            let s = ahead as f64 / span as f64;
+            let velocity = lerp(at.velocity_m_per_s, n.velocity_m_per_s, s);
+            CommandSample {
+                sample_time_ns: if 2 * ahead > span {
+                    n.sample_time_ns
+                } else {
+                    at.sample_time_ns
+                },
+                position_m: lerp(at.position_m, n.position_m, s),
+                velocity_m_per_s: scale(velocity, rate),
+                received_ns: at.received_ns,
+            }
+        }
+        None if ahead > 0 => {
+            let moving = ahead <= MAX_EXTRAPOLATION_NS;
+            let reach = ahead.min(MAX_EXTRAPOLATION_NS) as f64 * 1e-9;
+            CommandSample {
+                position_m: std::array::from_fn(|i| {
+                    at.position_m[i] + at.velocity_m_per_s[i] * reach
+                }),
+                velocity_m_per_s: scale(at.velocity_m_per_s, if moving { rate } else { 0.0 }),
+                ..at
+            }
+        }
+        _ => CommandSample {
+            velocity_m_per_s: scale(at.velocity_m_per_s, rate),
+            ..at
+        },
     }
 }
 
@@ -169,11 +292,13 @@ mod tests {
 
     const MS: i64 = 1_000_000;
 
+    /// A command on the path `x = t` (t in ms): a speed of 1,000 "m"/s, so a path step of 1 is
+    /// one millisecond of it.
     fn cmd(sample_ms: i64, received_ms: i64) -> CommandSample {
         CommandSample {
             sample_time_ns: sample_ms * MS,
             position_m: [sample_ms as f64, 0.0, 0.0],
-            velocity_m_per_s: [0.0; 3],
+            velocity_m_per_s: [1e3, 0.0, 0.0],
             received_ns: received_ms * MS,
         }
     }
@@ -214,6 +339,29 @@ mod tests {
     }
 
     #[test]
+    fn a_command_a_whole_delay_early_is_not_steered_toward() {
+        let mut p = Playout::new();
+        for k in 0..200 {
+            p.push(cmd(k, k + 50));
+            p.advance((k + 50) * MS);
+        }
+        // Command 250 overtook the rest (reorder), and 200–204 are late: the path goes on
+        // along 199's velocity for 10 ms and waits, instead of heading for 250.
+        p.push(cmd(250, 250));
+        for now in 250..265 {
+            let (c, _) = p.advance(now * MS);
+            let x = c.unwrap().position_m[0];
+            assert!(x <= 209.0 + 1e-9, "at {now}: the path is at {x}");
+        }
+        for k in 200..215 {
+            p.push(cmd(k, 265));
+        }
+        let (c, _) = p.advance(265 * MS);
+        let x = c.unwrap().position_m[0];
+        assert!(x < 211.0, "resumed at {x}, lag {:?}", p.lag_ns());
+    }
+
+    #[test]
     fn duplicates_and_old_commands_are_stale() {
         let mut p = Playout::new();
         p.push(cmd(1, 2));
@@ -225,31 +373,48 @@ mod tests {
     }
 
     #[test]
-    fn a_backlog_is_skipped_up_to_its_turn_and_the_lag_recovers() {
+    fn a_backlog_is_played_in_order_without_a_jump_and_the_lag_recovers() {
         let mut p = Playout::new();
         for k in 0..100 {
             p.push(cmd(k, k + 5));
             p.advance((k + 5) * MS);
         }
-        // A 20 ms stall, then everything at once: the stall's lags raise L for a while, so the
-        // oldest of the bunch are skipped up to the new turn and the rest play one per tick.
-        for k in 100..120 {
-            p.push(cmd(k, 125));
+        // A 20 ms stall, then everything at once: the path goes on along the last command's
+        // velocity for 10 ms, waits there, then plays the bunch in order, one path step a tick
+        // at most 1 + SLEW of a millisecond: nothing is skipped, nothing jumps.
+        let mut last = 99.0;
+        let mut skipped = 0;
+        // The slew takes the 10 ms the path fell behind back at 2 %: in half a second.
+        for now in 105..1500 {
+            let k = now - 5;
+            if (100..120).contains(&k) {
+                if k == 119 {
+                    for j in 100..120 {
+                        p.push(cmd(j, 125));
+                    }
+                }
+            } else if k >= 120 {
+                p.push(cmd(k, now));
+            }
+            let (c, s) = p.advance(now * MS);
+            skipped += s;
+            let x = c.unwrap().position_m[0];
+            assert!(x >= last, "in order at {now}: {x} after {last}");
+            assert!(
+                x - last <= 1.0 + SLEW + 1e-9,
+                "a jump at {now}: {last} → {x}"
+            );
+            last = x;
         }
-        let (c, skipped) = p.advance(125 * MS);
-        let first = c.unwrap().sample_time_ns / MS;
-        assert!((105..119).contains(&first), "ran {first}");
-        assert_eq!(skipped as i64, first - 100);
-        let mut last = first;
-        for k in 120..500 {
-            p.push(cmd(k, k + 5));
-            let (c, _) = p.advance((k + 5) * MS);
-            let now = c.unwrap().sample_time_ns / MS;
-            assert!(now >= last, "in order");
-            last = now;
-        }
+        assert_eq!(skipped, 0);
         assert_eq!(p.lag_ns(), Some(5 * MS), "the stall is forgotten");
-        assert_eq!(last, 499, "back to running on arrival");
+        p.push(cmd(1495, 1500));
+        let (c, _) = p.advance(1500 * MS);
+        assert_eq!(
+            c.unwrap().sample_time_ns,
+            1495 * MS,
+            "back to running on arrival"
+        );
     }
 
     #[test]
