@@ -156,18 +156,7 @@ impl Playout {
         let dt = self
             .last
             .map_or(0, |(_, then)| now_ns.saturating_sub(then).max(0));
-        // A step of the estimate itself is the link's; anything slower is slewed to.
-        let step = self
-            .taken_ns
-            .is_none_or(|t| estimate.saturating_sub(t).saturating_abs() > LAG_STEP_NS);
-        self.taken_ns = Some(estimate);
-        let lag = match self.play_lag_ns {
-            Some(lag) if !step => {
-                let most = SLEW * dt as f64;
-                lag + (estimate as f64 - lag).clamp(-most, most)
-            }
-            _ => estimate as f64,
-        };
+        let lag = self.follow(estimate, dt);
         let mut tau = now_ns.saturating_sub(lag.round() as i64);
         if let Some((before, _)) = self.last {
             tau = tau.max(before);
@@ -180,22 +169,7 @@ impl Playout {
         if starving && let Some(oldest) = self.held().map(|p| p.sample_time_ns).min() {
             tau = tau.max(oldest);
         }
-        let mut reached: usize = 0;
-        for slot in &mut self.pending {
-            if let Some(p) = *slot
-                && p.sample_time_ns <= tau
-            {
-                reached += 1;
-                self.last_progress_ns = Some(now_ns);
-                if self
-                    .current
-                    .is_none_or(|c| p.sample_time_ns > c.sample_time_ns)
-                {
-                    self.current = Some(p);
-                }
-                *slot = None;
-            }
-        }
+        let reached = self.reach(tau, now_ns);
         // Not across a gap longer than MAX_WAIT_NS (an outage, or a command that overtook the rest
         // by a whole delay): the path goes on from the newest command alone until the jump.
         let next = self
@@ -227,6 +201,45 @@ impl Playout {
         self.last = Some((tau, now_ns));
         let skipped = if smooth { 0 } else { reached.saturating_sub(1) };
         (self.current.map(|c| path_at(c, next, tau, rate)), skipped)
+    }
+
+    /// `L` this tick: the estimate `estimate` taken at once if it stepped by more than
+    /// [`LAG_STEP_NS`] since the last tick, else approached by at most [`SLEW`] of `dt`.
+    fn follow(&mut self, estimate: i64, dt: i64) -> f64 {
+        // A step of the estimate itself is the link's; anything slower is slewed to.
+        let step = self
+            .taken_ns
+            .is_none_or(|t| estimate.saturating_sub(t).saturating_abs() > LAG_STEP_NS);
+        self.taken_ns = Some(estimate);
+        match self.play_lag_ns {
+            Some(lag) if !step => {
+                let most = SLEW * dt as f64;
+                lag + (estimate as f64 - lag).clamp(-most, most)
+            }
+            _ => estimate as f64,
+        }
+    }
+
+    /// Takes the held commands at or before `tau` off the buffer; the newest becomes the current
+    /// one. Returns how many.
+    fn reach(&mut self, tau: i64, now_ns: i64) -> usize {
+        let mut reached = 0;
+        for slot in &mut self.pending {
+            if let Some(p) = *slot
+                && p.sample_time_ns <= tau
+            {
+                reached += 1;
+                self.last_progress_ns = Some(now_ns);
+                if self
+                    .current
+                    .is_none_or(|c| p.sample_time_ns > c.sample_time_ns)
+                {
+                    self.current = Some(p);
+                }
+                *slot = None;
+            }
+        }
+        reached
     }
 
     fn held(&self) -> impl Iterator<Item = &CommandSample> {
