@@ -71,6 +71,17 @@ pub fn set_timer_slack_ns(_slack_ns: u64) -> bool {
     false
 }
 
+/// A `--realtime-priority`: an integer from 1 to 99. `-1`, `0`, `100` and `high` get the same
+/// message (issue 11: `-1` got clap's "invalid digit found in string").
+pub fn parse_priority(s: &str) -> Result<u8, String> {
+    s.trim()
+        .parse::<i64>()
+        .ok()
+        .filter(|p| (1..=99).contains(p))
+        .and_then(|p| u8::try_from(p).ok())
+        .ok_or_else(|| "expected a SCHED_FIFO priority, an integer from 1 to 99".to_owned())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,5 +90,18 @@ mod tests {
     fn a_spawned_thread_gets_its_slack_and_runs_without_priority() {
         let handle = spawn("test-loop", None, || set_timer_slack_ns(1)).unwrap();
         assert!(handle.join().unwrap() || !cfg!(target_os = "linux"));
+    }
+
+    #[test]
+    fn a_priority_is_an_integer_from_1_to_99() {
+        assert_eq!(parse_priority("1"), Ok(1));
+        assert_eq!(parse_priority("99"), Ok(99));
+        for bad in ["-1", "0", "100", "high", "", "1e3", "256"] {
+            assert_eq!(
+                parse_priority(bad),
+                Err("expected a SCHED_FIFO priority, an integer from 1 to 99".to_owned()),
+                "{bad}"
+            );
+        }
     }
 }

@@ -82,7 +82,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "US", default_value_t = 100.0)]
     pub spin_us: f64,
     /// Run the loop thread under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
-    #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
+    #[arg(long, value_name = "PRIO", value_parser = rt::thread::parse_priority)]
     pub realtime_priority: Option<u8>,
     /// Recording and live view.
     #[command(flatten)]
@@ -232,5 +232,23 @@ mod tests {
         let spaced = parse(&["--spin-us", "-1"]);
         assert_eq!(spaced, parse(&["--spin-us=-1"]));
         assert_eq!(spaced, "--spin-us -1: expected 0 to 200 µs");
+    }
+
+    /// Issue 11: `--realtime-priority -1` got clap's "invalid digit found in string"; now both
+    /// forms name the range.
+    #[test]
+    fn a_bad_priority_names_the_range_in_both_forms() {
+        for flag in [
+            &["--realtime-priority", "-1"][..],
+            &["--realtime-priority=-1"],
+        ] {
+            let mut argv = vec!["telerobot", "run", "--listen", "127.0.0.1:0"];
+            argv.extend_from_slice(flag);
+            let message = Cli::try_parse_from(argv).unwrap_err().to_string();
+            assert!(
+                message.contains("expected a SCHED_FIFO priority, an integer from 1 to 99"),
+                "{message}"
+            );
+        }
     }
 }

@@ -45,7 +45,7 @@ pub struct RtArgs {
     #[arg(long, value_name = "US", default_value_t = 100.0)]
     pub spin_us: f64,
     /// Run the loop thread(s) under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
-    #[arg(long, value_name = "PRIO", value_parser = clap::value_parser!(u8).range(1..=99))]
+    #[arg(long, value_name = "PRIO", value_parser = rt::thread::parse_priority)]
     pub realtime_priority: Option<u8>,
 }
 
