@@ -37,9 +37,28 @@ fn a_refused_run_writes_no_recording() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("seconds = 0.05 is out of range"),
+        stderr.contains("--seconds 0.05: expected in [1, 3600] s"),
         "{stderr}"
     );
     assert!(!file.exists(), "{} was written", file.display());
     assert!(!file.with_extension("mcap.partial").exists());
+}
+
+/// Issue 11: a range error named the harness's field (`delay_ms = -5`), not the flag the user
+/// typed. Both forms of a negative value now name the flag.
+#[test]
+fn a_range_error_names_the_flag() {
+    for args in [&["--delay-ms", "-5"][..], &["--delay-ms=-5"]] {
+        let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+            .args(["experiment", "exp1", "--seconds", "5"])
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert_eq!(
+            stderr.trim(),
+            "mmt: --delay-ms -5: expected in [0, 2000] ms"
+        );
+    }
 }

@@ -77,10 +77,23 @@ fn link_faults(config: &mut ExperimentConfig, args: &ExperimentArgs) -> Result<(
     Ok(())
 }
 
+/// A setting out of range, named by the flag that set it (`--delay-ms -5`, not `delay_ms = -5`:
+/// issue 11); other errors as they are.
+fn as_flag(e: crate::experiment::ExperimentError) -> anyhow::Error {
+    match e {
+        crate::experiment::ExperimentError::Field {
+            field,
+            value,
+            expected,
+        } => anyhow::anyhow!("--{} {value}: expected {expected}", field.replace('_', "-")),
+        other => other.into(),
+    }
+}
+
 pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     let config = config(&args)?;
     // Every setting before any file: a refused run leaves no recording behind.
-    config.validate()?;
+    config.validate().map_err(as_flag)?;
     // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
     let bar = (config.seconds >= 100.0 && !args.json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
