@@ -52,6 +52,10 @@ impl DemoReport {
             uplink_latency: Some(self.telerobot.command_latency),
             telerobot_timing: Some(self.telerobot.timing),
             shim_lateness: self.shim.map(|s| s.lateness),
+            telerobot_camera: Some([
+                self.telerobot.camera_frames,
+                self.telerobot.camera_over_budget,
+            ]),
         }
     }
 }

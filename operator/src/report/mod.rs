@@ -135,6 +135,9 @@ pub struct PeerFigures {
     pub telerobot_timing: Option<TimingReport>,
     /// The netem shim's release lateness.
     pub shim_lateness: Option<Summary>,
+    /// The telerobot's camera frames `[sent, refused]` and, of them, over the real-time budget
+    /// `[downsampled, refused]`.
+    pub telerobot_camera: Option<[(u64, u64); 2]>,
 }
 
 /// What a run knew about itself.

@@ -41,6 +41,7 @@ fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> st
     outage_rows(&mut rows, r);
     latency_rows(&mut rows, r, peer);
     rows.row("sessions", r.sessions.to_string());
+    cloud_rows(&mut rows, r, peer);
     if let Some(t) = &peer.telerobot_timing {
         rows.row("telerobot loop period p50 / p99 / max", us(&t.period));
         rows.row("  ticks, overruns, skipped", count(t));
@@ -109,6 +110,21 @@ fn delay_rows(rows: &mut Rows, r: &NetworkedReport) {
     }
     if let Some(e) = &r.delay_estimate {
         rows.row("  peak correlation", format!("{:.4}", e.peak_correlation));
+    }
+}
+
+/// Cloud frames on both sides, and those the real-time budget reduced or refused (issue 11: the
+/// budget's counts were in the JSON only).
+fn cloud_rows(rows: &mut Rows, r: &NetworkedReport, peer: &PeerFigures) {
+    let pair = |(a, b): (u64, u64)| format!("{a} / {b}");
+    rows.row("cloud frames indexed / refused", pair(r.clouds));
+    rows.row(
+        "  over the budget: downsampled / refused",
+        pair(r.clouds_over_budget),
+    );
+    if let Some([frames, over]) = peer.telerobot_camera {
+        rows.row("telerobot camera frames sent / refused", pair(frames));
+        rows.row("  over its budget: downsampled / refused", pair(over));
     }
 }
 

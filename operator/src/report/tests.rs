@@ -91,6 +91,34 @@ fn the_table_shows_every_trip_counter() {
     assert_eq!(value(&t, "device state, faults"), "Disabled / 0");
 }
 
+/// Issue 11: the clouds the real-time budget reduced or refused were counted in the JSON only.
+#[test]
+fn the_table_shows_the_clouds_over_budget_on_both_sides() {
+    let mut r = report(SafetyStats::default(), Vec::new());
+    r.clouds = (120, 3);
+    r.clouds_over_budget = (7, 2);
+    let peer = PeerFigures {
+        telerobot_camera: Some([(300, 4), (9, 1)]),
+        ..PeerFigures::default()
+    };
+    let t = table(&r, &peer);
+    assert_eq!(value(&t, "cloud frames indexed / refused"), "120 / 3");
+    assert_eq!(
+        value(&t, "  over the budget: downsampled / refused"),
+        "7 / 2"
+    );
+    assert_eq!(
+        value(&t, "telerobot camera frames sent / refused"),
+        "300 / 4"
+    );
+    assert_eq!(
+        value(&t, "  over its budget: downsampled / refused"),
+        "9 / 1"
+    );
+    // Without the telerobot in the process (operator run), its rows are left out.
+    assert!(!table(&r, &PeerFigures::default()).contains("telerobot camera"));
+}
+
 /// The renderability gate and Colgate's clip say so in the networked report.
 #[test]
 fn renderer_counters_are_reported() {
