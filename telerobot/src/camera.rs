@@ -117,7 +117,7 @@ impl FrameBudget {
     pub fn of_scene(scene: &sim::scene::Scene) -> FrameBudget {
         FrameBudget {
             proxy: scene.proxy.config(scene.rates.control_hz),
-            budget: CloudBudget::default(),
+            budget: scene.cloud.budget,
             frame_rate_hz: Some(scene.cloud.rate_hz),
             grid: VoxelGrid::new(),
             warned: false,
@@ -259,6 +259,31 @@ fn run(
 mod tests {
     use super::*;
     use mmt::cloud::Pose;
+
+    /// Issue 11: the camera holds frames to the scene's `[cloud.budget]`, not to the 2-core
+    /// defaults: a 90,000-point frame at 30 Hz is downsampled by default and kept whole on a
+    /// robot PC whose scene says it indexes four times faster on a whole core.
+    #[test]
+    fn the_camera_holds_frames_to_the_scenes_budget() {
+        let grid: Vec<[f32; 3]> = (0..300 * 300)
+            .map(|k| [(k % 300) as f32 * 0.001, (k / 300) as f32 * 0.001, 0.0])
+            .collect();
+        let mut scene = sim::scene::Scene::exp1();
+        let feed = CameraFeed::default();
+        let frame = CloudFrame::new(grid.clone(), 1, Pose::IDENTITY).unwrap();
+        let kept = FrameBudget::of_scene(&scene).hold(frame, &feed).unwrap();
+        assert!(
+            kept.points().len() < grid.len(),
+            "the default budget downsamples"
+        );
+        scene.cloud.budget.index_share = 1.0;
+        scene.cloud.budget.build_ns_per_point = 40.0;
+        let feed = CameraFeed::default();
+        let frame = CloudFrame::new(grid.clone(), 2, Pose::IDENTITY).unwrap();
+        let kept = FrameBudget::of_scene(&scene).hold(frame, &feed).unwrap();
+        assert_eq!(kept.points().len(), grid.len());
+        assert_eq!(feed.budget_counts(), (0, 0));
+    }
 
     /// Issue 11, finding 5 on the camera thread: a ROS 2 camera's million-point frame (which
     /// only its own `max_points` held) is downsampled before it is indexed, and counted.

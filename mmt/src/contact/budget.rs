@@ -123,8 +123,11 @@ fn positive(field: &'static str, value: f64) -> Result<(), BudgetError> {
     }
 }
 
-/// What a cloud may cost, and the measured costs the estimate is made of.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What a cloud may cost, and the measured costs the estimate is made of. The defaults are
+/// this project's 2-core reference machine; a scene's `[cloud.budget]` table overrides any of
+/// them for a faster (or slower) robot PC.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct CloudBudget {
     /// Fraction of a tick (`1/rate_hz` of the proxy) its worst step may take. Default 0.25: the
     /// haptic tick also renders, exchanges messages and waits on a shared 2-core machine.
@@ -152,6 +155,56 @@ pub struct CloudBudget {
     /// process at this limit (the 4.9 M-point cloud of the finding took 0.9 GB) — and a static
     /// cloud's one-off build stays near 0.15 s.
     pub max_points: usize,
+}
+
+impl CloudBudget {
+    /// Name, value and expectation of the first field out of its range, if any.
+    pub fn invalid_field(&self) -> Option<(&'static str, f64, &'static str)> {
+        let share = |v: f64| v.is_finite() && v > 0.0 && v <= 1.0;
+        let cost = |v: f64, most: f64| v.is_finite() && v > 0.0 && v <= most;
+        let checks = [
+            (
+                "step_share",
+                self.step_share,
+                share(self.step_share),
+                "a share of the tick in (0, 1]",
+            ),
+            (
+                "step_fixed_ns",
+                self.step_fixed_ns,
+                self.step_fixed_ns.is_finite() && (0.0..=1e6).contains(&self.step_fixed_ns),
+                "in [0, 1,000,000] ns",
+            ),
+            (
+                "step_ns_per_point",
+                self.step_ns_per_point,
+                cost(self.step_ns_per_point, 1e4),
+                "in (0, 10,000] ns per point",
+            ),
+            (
+                "index_share",
+                self.index_share,
+                share(self.index_share),
+                "a share of one core in (0, 1]",
+            ),
+            (
+                "build_ns_per_point",
+                self.build_ns_per_point,
+                cost(self.build_ns_per_point, 1e5),
+                "in (0, 100,000] ns per point",
+            ),
+            (
+                "max_points",
+                self.max_points as f64,
+                (1..=4 * 1024 * 1024).contains(&self.max_points),
+                "1 to 4,194,304 points (the largest cloud the protocol carries)",
+            ),
+        ];
+        checks
+            .into_iter()
+            .find(|(_, _, ok, _)| !ok)
+            .map(|(name, value, _, expected)| (name, value, expected))
+    }
 }
 
 impl Default for CloudBudget {

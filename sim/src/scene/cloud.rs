@@ -80,6 +80,11 @@ pub struct CloudSource {
     pub max_points: usize,
     /// `ros2`: a cloud older than this is flagged stale [ms].
     pub stale_ms: f64,
+    /// The loops' real-time budget for this robot PC (`[cloud.budget]`: any of
+    /// `mmt::contact::budget::CloudBudget`'s fields; the rest keep their defaults, measured on
+    /// a loaded 2-core machine). The telerobot holds every cloud to it; the operator holds the
+    /// frames it receives to its own default budget.
+    pub budget: mmt::contact::budget::CloudBudget,
 }
 
 impl Default for CloudSource {
@@ -98,6 +103,7 @@ impl Default for CloudSource {
             voxel_m: None,
             max_points: DEFAULT_MAX_POINTS,
             stale_ms: DEFAULT_STALE_MS,
+            budget: mmt::contact::budget::CloudBudget::default(),
         }
     }
 }
@@ -151,6 +157,19 @@ impl CloudPose {
     }
 }
 
+/// `cloud.budget.NAME` for a field of the budget.
+fn budget_field(name: &str) -> &'static str {
+    match name {
+        "step_share" => "cloud.budget.step_share",
+        "step_fixed_ns" => "cloud.budget.step_fixed_ns",
+        "step_ns_per_point" => "cloud.budget.step_ns_per_point",
+        "index_share" => "cloud.budget.index_share",
+        "build_ns_per_point" => "cloud.budget.build_ns_per_point",
+        "max_points" => "cloud.budget.max_points",
+        _ => "cloud.budget",
+    }
+}
+
 fn field(
     field: &'static str,
     value: impl std::fmt::Debug,
@@ -199,9 +218,18 @@ impl CloudSource {
         Ok(())
     }
 
-    /// The keys of a `file` or `ros2` source (the plane's are checked with the proxy, in
-    /// `validate`).
+    /// The real-time budget's keys, and those of a `file` or `ros2` source (the plane's are
+    /// checked with the proxy, in `validate`).
     pub(super) fn validate_external(&self) -> Result<(), SceneError> {
+        // Every source: the budget holds file and ROS 2 clouds as it holds the plane.
+        if let Some((name, value, expected)) = self.budget.invalid_field() {
+            return Err(SceneError::Field {
+                origin: String::new(),
+                field: budget_field(name),
+                value: format!("{value:?}"),
+                expected,
+            });
+        }
         match self.source {
             CloudKind::File => field(
                 "cloud.path",

@@ -403,8 +403,9 @@ impl Scene {
             message: e.to_string(),
         })?;
         scene.validate().map_err(|e| e.with_origin(origin))?;
+        let budget = scene.cloud.budget;
         scene
-            .fit_cloud_budget(&mmt::contact::budget::CloudBudget::default())
+            .fit_cloud_budget(&budget)
             .map_err(|e| e.with_origin(origin))?;
         let n = scene.surface.normal;
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();

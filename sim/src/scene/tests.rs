@@ -362,6 +362,43 @@ fn a_plane_over_the_budget_is_downsampled_with_a_warning() {
     assert_eq!(Scene::exp1().cloud.spacing_m, 0.0045);
 }
 
+/// Issue 11: the budget's costs were this project's 2-core machine's, and no scene could raise
+/// them for a faster robot PC. `[cloud.budget]` overrides any of them, checked like every key.
+#[test]
+fn a_scene_can_raise_the_budget_for_a_faster_robot_pc() {
+    let fast = "[cloud]\nsource = \"plane\"\nsize_m = [0.6, 0.6]\nspacing_m = 0.0045\n\
+                moving = true\nrate_hz = 100.0\n[cloud.budget]\nindex_share = 1.0\n\
+                build_ns_per_point = 40.0";
+    let s = with_cloud(fast).unwrap();
+    assert!(s.cloud_budget().is_none(), "{:?}", s.cloud_budget());
+    assert_eq!(s.cloud.spacing_m, 0.0045);
+    assert_eq!(s.cloud.budget.index_share, 1.0);
+    assert_eq!(
+        s.cloud.budget.step_share,
+        mmt::contact::budget::CloudBudget::default().step_share,
+        "the keys not given keep their defaults"
+    );
+    for (bad, key) in [
+        ("step_share = 1.5", "cloud.budget.step_share = 1.5"),
+        (
+            "build_ns_per_point = 0.0",
+            "cloud.budget.build_ns_per_point = 0.0",
+        ),
+        ("max_points = 0", "cloud.budget.max_points = 0.0"),
+    ] {
+        let e = with_cloud(&format!(
+            "[cloud]\nsource = \"plane\"\n[cloud.budget]\n{bad}"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(key), "{key:?} not in {e}");
+    }
+    let e = with_cloud("[cloud]\nsource = \"plane\"\n[cloud.budget]\nspeed = 2.0")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown field `speed`"), "{e}");
+}
+
 #[test]
 fn a_plane_that_cannot_fit_without_slipping_is_refused() {
     // r3 = 0.3 m over a 1 m window: a query ball of 0.46 m holds ~34,000 points even at

@@ -131,7 +131,7 @@ impl FileCloud {
         // radii and rate, and the frames at `rate_hz` when the cloud moves.
         let proxy = scene.proxy.config(scene.rates.control_hz);
         let rate = c.moving.then_some(c.rate_hz);
-        let budget = mmt::contact::budget::CloudBudget::default();
+        let budget = scene.cloud.budget;
         let real_time =
             cloud_io::budget::fit_to_budget(&mut points, &proxy, &budget, rate, &mut grid)
                 .map_err(|source| CloudFileError::Budget {
