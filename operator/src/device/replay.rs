@@ -87,6 +87,20 @@ pub enum ReplayError {
         /// What was expected ("a number", "a finite number").
         expected: &'static str,
     },
+    /// Positions so far apart for their times that the velocity differentiated from them is
+    /// not a number a device could have (or not finite at all).
+    #[error(
+        "{file}: the velocity differentiated around t = {t_s} s (next sample at {next_s} s) is over \
+         1,000,000 m/s: samples too close in time for the distance between them"
+    )]
+    TooFast {
+        /// The file.
+        file: String,
+        /// The sample's time [s].
+        t_s: f64,
+        /// The next sample's time [s].
+        next_s: f64,
+    },
     /// A time not after the previous one.
     #[error(
         "{file}: line {line}, column 1 (t_s): time {t_s} s is not after the previous sample's {previous_s} s; times must increase strictly"
@@ -239,6 +253,18 @@ impl ReplayTrajectory {
         }
         if columns == 4 {
             fill_finite_difference_velocity(&mut samples);
+            let fast = samples.iter().position(|s| {
+                !s.velocity_m_per_s
+                    .iter()
+                    .all(|c| c.is_finite() && c.abs() <= MAX_ABS)
+            });
+            if let Some(i) = fast {
+                return Err(ReplayError::TooFast {
+                    file: file.to_owned(),
+                    t_s: samples[i].t_s,
+                    next_s: samples[(i + 1).min(samples.len() - 1)].t_s,
+                });
+            }
         }
         let name = Path::new(file)
             .file_name()
@@ -258,6 +284,10 @@ impl ReplayTrajectory {
         self.samples.is_empty()
     }
 }
+
+/// Largest magnitude of a position \[m\] or velocity \[m/s\] in a replay: far beyond any device,
+/// and small enough that differences and interpolation stay finite.
+const MAX_ABS: f64 = 1e6;
 
 /// Parses one data line into 7 values (velocity zero when absent).
 fn parse_row(file: &str, line: usize, text: &str, columns: usize) -> Result<[f64; 7], ReplayError> {
@@ -284,6 +314,11 @@ fn parse_row(file: &str, line: usize, text: &str, columns: usize) -> Result<[f64
         let x: f64 = field.parse().map_err(|_| bad("a number"))?;
         if !x.is_finite() {
             return Err(bad("a finite number"));
+        }
+        if i > 0 && x.abs() > MAX_ABS {
+            return Err(bad(
+                "a position or velocity of at most 1,000,000 in magnitude (metres, m/s)",
+            ));
         }
         v[i] = x;
     }

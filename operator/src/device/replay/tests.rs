@@ -230,3 +230,75 @@ fn refuses_recordings_without_haptic_ticks_saying_what_they_are() {
         .to_string();
     assert!(e.contains(&csv.display().to_string()), "{e}");
 }
+
+/// A number as a replay file could hold it: ordinary, extreme, or not a number at all.
+fn token() -> impl proptest::strategy::Strategy<Value = String> {
+    use proptest::prelude::*;
+    prop_oneof![
+        40 => (-2.0..2.0_f64).prop_map(|v| v.to_string()),
+        6 => prop::sample::select(vec!["1e308", "-1e308", "5e-324", "-0", "1e300", "-1.7e308"])
+            .prop_map(str::to_owned),
+        1 => prop::num::f64::ANY.prop_map(|v| v.to_string()),
+        1 => prop::sample::select(vec!["nan", "inf", "", "x", "0x10"]).prop_map(str::to_owned),
+    ]
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(1024))]
+
+    /// Issue 11: the device replay was not fuzzed. Whatever the lines hold, parsing never
+    /// panics, and a trajectory it accepts gives finite positions and velocities at any time
+    /// (a replay drives the commanded position).
+    #[test]
+    fn any_replay_text_is_refused_or_gives_a_finite_path(
+        full in proptest::prelude::any::<bool>(),
+        rows in proptest::collection::vec(proptest::collection::vec(token(), 7), 0..12),
+        ragged in 0..20_usize,
+        times in 0..3_u8,
+        at in proptest::collection::vec(-1.0..20.0_f64, 8),
+    ) {
+        let mut text = String::from(if full { HEADER_FULL } else { HEADER_POSITION });
+        text.push('\n');
+        let columns = if full { 7 } else { 4 };
+        for (k, row) in rows.iter().enumerate() {
+            // Mostly the right number of columns; now and then one short.
+            let n = if k == ragged { columns - 1 } else { columns };
+            let mut row = row[..n].to_vec();
+            match times {
+                0 => row[0] = k.to_string(),
+                // Steps of the smallest subnormal: a finite difference over them overflows.
+                1 => row[0] = (k as f64 * 5e-324).to_string(),
+                _ => {}
+            }
+            text.push_str(&row.join(","));
+            text.push('\n');
+        }
+        let Ok(r) = parse(&text) else {
+            return Ok(());
+        };
+        for t in at {
+            let s = r.sample(t);
+            proptest::prop_assert!(
+                s.position_m.iter().chain(&s.velocity_m_per_s).all(|v| v.is_finite()),
+                "at {t} s: {s:?} from\n{text}"
+            );
+        }
+    }
+}
+
+/// Found by the property above: positions 1e308 apart gave a NaN velocity from an accepted
+/// file. Such values are now refused by name, and so is a finite difference over too short a
+/// time.
+#[test]
+fn positions_too_large_or_too_fast_are_refused() {
+    let e = err("t_s,x,y,z\n0,0,0,1e308\n1,0,0,0\n");
+    assert!(
+        e.contains("line 2, column 4 (z)") && e.contains("at most 1,000,000"),
+        "{e}"
+    );
+    let e = err("t_s,x,y,z\n0,0,0,0\n1e-300,0,0,1\n");
+    assert!(
+        e.contains("around t = 0 s") && e.contains("over 1,000,000 m/s"),
+        "{e}"
+    );
+}
