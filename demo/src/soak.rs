@@ -49,6 +49,10 @@ pub struct Minute {
     pub rss_mb: f64,
     /// CPU time of the process since the last row, % of one core.
     pub cpu_pct: f64,
+    /// New model ids the operator took in the minute: the first contact's, then one each time
+    /// the telerobot's estimator reset its model (a new object, or a misfit taken for one).
+    #[serde(default)]
+    pub models: u64,
 }
 
 /// Cuts tapped samples into minutes and computes each minute's figures.
@@ -67,6 +71,8 @@ pub struct Minutes {
     measurements: Vec<MeasurementSample>,
     /// Arrival times not yet counted \[ns\].
     arrivals: Vec<i64>,
+    /// Ticks at which a new model id was taken, not yet counted.
+    models: Vec<u64>,
     /// The last arrival before the current minute (an outage across the boundary counts).
     last_arrival_ns: Option<i64>,
     counted: (u64, u64),
@@ -90,6 +96,7 @@ impl Minutes {
             ticks: Vec::new(),
             measurements: Vec::new(),
             arrivals: Vec::new(),
+            models: Vec::new(),
             last_arrival_ns: None,
             counted: (0, 0),
         }
@@ -113,8 +120,10 @@ impl Minutes {
             Tapped::Batch {
                 ticks,
                 measurements,
+                models,
             } => {
                 self.ticks.extend(ticks);
+                self.models.extend(models.iter().map(|m| m.0));
                 self.arrivals
                     .extend(measurements.iter().map(|m| m.received_ns));
                 self.measurements.extend(measurements);
@@ -171,6 +180,8 @@ impl Minutes {
         let outages = self.outages(start_ns, end_ns);
         let (overruns, skipped) = self.loop_counts();
         let contact = ticks.iter().filter(|t| t.in_contact).count();
+        let models = self.models.iter().filter(|&&k| k < end).count() as u64;
+        self.models.retain(|&k| k >= end);
         self.ticks.retain(|t| t.index >= end);
         self.measurements
             .retain(|m| m.command_sample_time_ns >= end_ns);
@@ -186,6 +197,7 @@ impl Minutes {
             longest_outage_ms: outages.longest_ms,
             overruns,
             skipped_ticks: skipped,
+            models,
             ..Minute::default()
         }
     }

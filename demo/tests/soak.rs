@@ -57,6 +57,13 @@ fn a_one_minute_soak_writes_its_row_and_its_verdict() {
     );
     let rss: f64 = row[10].parse().unwrap();
     assert!(rss > 10.0, "{rss} MB");
+    // The first contact's model, and at most one reset: the playout of jittery commands used to
+    // make the telerobot's estimator reset about three times a minute.
+    let models: u64 = row[12].parse().unwrap();
+    assert!(
+        (1..=2).contains(&models),
+        "{models} model ids in the minute"
+    );
 
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("soak.json")).unwrap()).unwrap();

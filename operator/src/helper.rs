@@ -171,6 +171,10 @@ pub enum Tapped {
         ticks: Vec<TickSample>,
         /// Measurements in arrival order.
         measurements: Vec<MeasurementSample>,
+        /// `(tick, model id)` of each tick that took parameters of a model id other than the
+        /// last one's: the telerobot started a new model (a first contact, or its estimator
+        /// reset after a new object).
+        models: Vec<(u64, u32)>,
     },
 }
 
@@ -241,7 +245,13 @@ pub fn spawn(
                 previous_tick: None,
                 streams,
                 keep: tap.as_ref().map_or(MAX_RECORDED_TICKS, |t| t.keep_ticks),
-                tap: tap.map(|t| (t.to, Vec::new(), Vec::new())),
+                tap: tap.map(|t| TapRound {
+                    to: t.to,
+                    ticks: Vec::new(),
+                    measurements: Vec::new(),
+                    models: Vec::new(),
+                    model: None,
+                }),
                 guard: CloudGuard::default(),
             };
             while !stop.wait_timeout(POLL) {
@@ -270,13 +280,20 @@ struct Helper {
     streams: Option<Streams>,
     /// Most ticks and measurements the recording keeps.
     keep: usize,
-    /// The tap, and this round's ticks and measurements for it.
-    tap: Option<(
-        std::sync::mpsc::Sender<Tapped>,
-        Vec<TickSample>,
-        Vec<MeasurementSample>,
-    )>,
+    /// The tap, and this round's samples for it.
+    tap: Option<TapRound>,
     guard: CloudGuard,
+}
+
+/// The tap and what the current round has for it.
+#[derive(Debug)]
+struct TapRound {
+    to: std::sync::mpsc::Sender<Tapped>,
+    ticks: Vec<TickSample>,
+    measurements: Vec<MeasurementSample>,
+    models: Vec<(u64, u32)>,
+    /// The model id of the last parameters taken.
+    model: Option<u32>,
 }
 
 /// Holds frames received from the telerobot to the real-time budget (`mmt::contact::budget`)
@@ -371,8 +388,14 @@ impl Helper {
                 in_contact: t.in_contact,
                 rendering: t.rendering,
             };
-            if let Some((_, ticks, _)) = &mut self.tap {
-                ticks.push(sample);
+            if let Some(tap) = &mut self.tap {
+                tap.ticks.push(sample);
+                if let Some((p, _)) = &t.parameters
+                    && tap.model != Some(p.model_id)
+                {
+                    tap.model = Some(p.model_id);
+                    tap.models.push((t.index, p.model_id));
+                }
             }
             let r = &mut self.recording;
             if r.ticks.len() < self.keep {
@@ -390,8 +413,8 @@ impl Helper {
             if let Some(s) = &mut self.streams {
                 s.measurement(&rec);
             }
-            if let Some((_, _, measurements)) = &mut self.tap {
-                measurements.push(rec.sample());
+            if let Some(tap) = &mut self.tap {
+                tap.measurements.push(rec.sample());
             }
             let r = &mut self.recording;
             if r.measurements.len() < self.keep {
@@ -413,17 +436,18 @@ impl Helper {
 
     /// This round's samples to the tap, if it took any (a vanished consumer is forgotten).
     fn tap_batch(&mut self) {
-        let Some((to, ticks, measurements)) = &mut self.tap else {
+        let Some(tap) = &mut self.tap else {
             return;
         };
-        if ticks.is_empty() && measurements.is_empty() {
+        if tap.ticks.is_empty() && tap.measurements.is_empty() {
             return;
         }
         let batch = Tapped::Batch {
-            ticks: std::mem::take(ticks),
-            measurements: std::mem::take(measurements),
+            ticks: std::mem::take(&mut tap.ticks),
+            measurements: std::mem::take(&mut tap.measurements),
+            models: std::mem::take(&mut tap.models),
         };
-        if to.send(batch).is_err() {
+        if tap.to.send(batch).is_err() {
             self.tap = None;
         }
     }

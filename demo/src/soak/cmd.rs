@@ -19,7 +19,7 @@ use crate::run::{DemoConfig, run};
 /// a minute: memory and CPU of the process, the rendered-force error, the haptic loop's
 /// overruns and skipped ticks, the outages.
 #[derive(Clone, Debug, Parser)]
-#[command(name = "soak", version, about)]
+#[command(name = "soak", version, about, allow_negative_numbers = true)]
 pub struct SoakCli {
     /// Length of the run [min], 1 to 1440.
     #[arg(
@@ -70,7 +70,7 @@ pub struct SoakCli {
 
 /// minutes.csv's columns.
 const HEADER: &str = "minute,ticks,measurements,in_contact_pct,error_pct,error_after_stable_pct,\
-                      outages,longest_outage_ms,overruns,skipped_ticks,rss_mb,cpu_pct";
+                      outages,longest_outage_ms,overruns,skipped_ticks,rss_mb,cpu_pct,models";
 
 /// What soak.json holds.
 #[derive(Debug, Serialize)]
@@ -190,7 +190,7 @@ fn monitor(
     );
     let _ = writeln!(
         rows,
-        "minute  ticks   contact  error   after-stable  outages (longest)  overruns  skipped  RSS       CPU"
+        "minute  ticks   contact  error   after-stable  outages (longest)  overruns  skipped  RSS       CPU      models"
     );
     let mut stamp = |mut m: Minute| {
         let (rss, cpu) = process_usage().unwrap_or_default();
@@ -220,7 +220,7 @@ fn opt(v: Option<f64>) -> String {
 
 fn csv_row(m: &Minute) -> String {
     format!(
-        "{},{},{},{:.2},{},{},{},{:.1},{},{},{:.1},{:.1}",
+        "{},{},{},{:.2},{},{},{},{:.1},{},{},{:.1},{:.1},{}",
         m.minute,
         m.ticks,
         m.measurements,
@@ -232,14 +232,15 @@ fn csv_row(m: &Minute) -> String {
         m.overruns,
         m.skipped_ticks,
         m.rss_mb,
-        m.cpu_pct
+        m.cpu_pct,
+        m.models
     )
 }
 
 fn table_row(m: &Minute) -> String {
     let pct = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.2} %"));
     format!(
-        "{:>6}  {:>6}  {:>5.1} %  {:>7}  {:>12}  {:>7} ({:>5.0} ms)  {:>8}  {:>7}  {:>6.1} MB  {:>5.1} %",
+        "{:>6}  {:>6}  {:>5.1} %  {:>7}  {:>12}  {:>7} ({:>5.0} ms)  {:>8}  {:>7}  {:>6.1} MB  {:>5.1} %  {:>6}",
         m.minute,
         m.ticks,
         m.in_contact_pct,
@@ -250,7 +251,8 @@ fn table_row(m: &Minute) -> String {
         m.overruns,
         m.skipped_ticks,
         m.rss_mb,
-        m.cpu_pct
+        m.cpu_pct,
+        m.models
     )
 }
 

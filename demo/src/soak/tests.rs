@@ -46,6 +46,7 @@ fn batch(from: u64, to: u64, gain: f64, hole: std::ops::Range<u64>) -> Tapped {
     Tapped::Batch {
         ticks,
         measurements,
+        models: Vec::new(),
     }
 }
 
@@ -168,4 +169,35 @@ fn the_process_usage_is_read_on_linux() {
         assert!(rss > 1.0 && rss < 100_000.0, "{rss} MB");
         assert!(cpu >= 0.0);
     }
+}
+
+/// Issue 11's soak: the error spikes came with resets of the telerobot's model, which no column
+/// showed. A new model id the loop takes is counted in the minute of its tick.
+#[test]
+fn each_new_model_is_counted_in_its_minute() {
+    let mut m = Minutes::new("soak", 400.0, 3.0);
+    start(&mut m);
+    let with_models = |b: Tapped, at: Vec<(u64, u32)>| match b {
+        Tapped::Batch {
+            ticks,
+            measurements,
+            ..
+        } => Tapped::Batch {
+            ticks,
+            measurements,
+            models: at,
+        },
+        other => other,
+    };
+    assert!(
+        m.take(with_models(batch(0, 60_000, 1.0, 0..0), vec![(1_200, 1)]))
+            .is_empty()
+    );
+    let mut done = m.take(with_models(
+        batch(60_000, 125_000, 1.0, 0..0),
+        vec![(61_000, 2), (119_999, 3), (120_000, 4)],
+    ));
+    done.extend(m.finish());
+    let models: Vec<u64> = done.iter().map(|r| r.models).collect();
+    assert_eq!(models, [1, 2, 1]);
 }
