@@ -142,42 +142,6 @@ impl Streams {
     }
 }
 
-/// A consumer of every tick and measurement sample as the run goes (the soak's per-minute
-/// figures), and how many of them the run's own recording keeps (its report covers those).
-#[derive(Clone, Debug)]
-pub struct Tap {
-    /// Where the batches go: one per helper round that took something, after the run's
-    /// [`Tapped::Start`].
-    pub to: std::sync::mpsc::Sender<Tapped>,
-    /// Most ticks (and measurements) the run's recording keeps.
-    pub keep_ticks: usize,
-}
-
-/// What a [`Tap`] receives.
-#[derive(Clone, Debug)]
-pub enum Tapped {
-    /// The haptic loop's schedule and timing counters, before its first tick.
-    Start {
-        /// Tick 0's time [ns].
-        start_ns: i64,
-        /// Tick period \[ns\].
-        period_ns: i64,
-        /// The loop's timing counters (overruns, skipped ticks), live.
-        timing: Arc<rt::LoopTiming>,
-    },
-    /// The samples one helper round took.
-    Batch {
-        /// Tick samples, in tick order.
-        ticks: Vec<TickSample>,
-        /// Measurements in arrival order.
-        measurements: Vec<MeasurementSample>,
-        /// `(tick, model id)` of each tick that took parameters of a model id other than the
-        /// last one's: the telerobot started a new model (a first contact, or its estimator
-        /// reset after a new object).
-        models: Vec<(u64, u32)>,
-    },
-}
-
 /// Everything recorded during a run, for its report.
 #[derive(Debug, Default)]
 pub struct Recording {
@@ -245,13 +209,7 @@ pub fn spawn(
                 previous_tick: None,
                 streams,
                 keep: tap.as_ref().map_or(MAX_RECORDED_TICKS, |t| t.keep_ticks),
-                tap: tap.map(|t| TapRound {
-                    to: t.to,
-                    ticks: Vec::new(),
-                    measurements: Vec::new(),
-                    models: Vec::new(),
-                    model: None,
-                }),
+                tap: tap.map(TapRound::new),
                 guard: CloudGuard::default(),
             };
             while !stop.wait_timeout(POLL) {
@@ -283,17 +241,6 @@ struct Helper {
     /// The tap, and this round's samples for it.
     tap: Option<TapRound>,
     guard: CloudGuard,
-}
-
-/// The tap and what the current round has for it.
-#[derive(Debug)]
-struct TapRound {
-    to: std::sync::mpsc::Sender<Tapped>,
-    ticks: Vec<TickSample>,
-    measurements: Vec<MeasurementSample>,
-    models: Vec<(u64, u32)>,
-    /// The model id of the last parameters taken.
-    model: Option<u32>,
 }
 
 /// Holds frames received from the telerobot to the real-time budget (`mmt::contact::budget`)
@@ -389,13 +336,7 @@ impl Helper {
                 rendering: t.rendering,
             };
             if let Some(tap) = &mut self.tap {
-                tap.ticks.push(sample);
-                if let Some((p, _)) = &t.parameters
-                    && tap.model != Some(p.model_id)
-                {
-                    tap.model = Some(p.model_id);
-                    tap.models.push((t.index, p.model_id));
-                }
+                tap.tick(sample, t.parameters.as_ref().map(|(p, _)| p.model_id));
             }
             let r = &mut self.recording;
             if r.ticks.len() < self.keep {
@@ -414,7 +355,7 @@ impl Helper {
                 s.measurement(&rec);
             }
             if let Some(tap) = &mut self.tap {
-                tap.measurements.push(rec.sample());
+                tap.measurement(rec.sample());
             }
             let r = &mut self.recording;
             if r.measurements.len() < self.keep {
@@ -436,18 +377,7 @@ impl Helper {
 
     /// This round's samples to the tap, if it took any (a vanished consumer is forgotten).
     fn tap_batch(&mut self) {
-        let Some(tap) = &mut self.tap else {
-            return;
-        };
-        if tap.ticks.is_empty() && tap.measurements.is_empty() {
-            return;
-        }
-        let batch = Tapped::Batch {
-            ticks: std::mem::take(&mut tap.ticks),
-            measurements: std::mem::take(&mut tap.measurements),
-            models: std::mem::take(&mut tap.models),
-        };
-        if tap.to.send(batch).is_err() {
+        if self.tap.as_mut().is_some_and(|tap| !tap.send()) {
             self.tap = None;
         }
     }
@@ -620,6 +550,10 @@ impl Forward {
         }
     }
 }
+
+mod tap;
+use tap::TapRound;
+pub use tap::{Tap, Tapped};
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
