@@ -62,9 +62,8 @@ pub(super) struct Playout {
     lag_ns: Option<i64>,
     /// The estimate `L` last followed \[ns\].
     taken_ns: Option<i64>,
-    /// The lag the path is played at, `L` \[ns\].
-    play_lag_ns: Option<f64>,
-    /// The playout time of the last tick, and that tick's time \[ns\].
+    /// The playout time of the last tick, and that tick's time \[ns\]: `L` as played is their
+    /// difference (a jump or a wait moves it too, so the slew goes on from where the path is).
     last: Option<(i64, i64)>,
     /// The newest command whose sample time the path has reached.
     current: Option<CommandSample>,
@@ -94,7 +93,6 @@ impl Playout {
             since_estimate: 0,
             lag_ns: None,
             taken_ns: None,
-            play_lag_ns: None,
             last: None,
             current: None,
             last_received_ns: None,
@@ -190,8 +188,6 @@ impl Playout {
             let limit = c.sample_time_ns.saturating_add(MAX_EXTRAPOLATION_NS);
             tau = tau.min(limit.max(self.last.map_or(limit, |(before, _)| before)));
         }
-        // `L` as played: a jump or a wait moves it too, so the slew goes on from where the path is.
-        self.play_lag_ns = Some(now_ns.saturating_sub(tau) as f64);
         let advanced = self.last.map_or(0, |(before, _)| tau - before);
         let smooth = advanced as f64 <= (1.0 + SLEW) * dt as f64 + 1.0;
         let rate = match self.last {
@@ -211,8 +207,9 @@ impl Playout {
             .taken_ns
             .is_none_or(|t| estimate.saturating_sub(t).saturating_abs() > LAG_STEP_NS);
         self.taken_ns = Some(estimate);
-        match self.play_lag_ns {
-            Some(lag) if !step => {
+        match self.last {
+            Some((tau, then)) if !step => {
+                let lag = then.saturating_sub(tau) as f64;
                 let most = SLEW * dt as f64;
                 lag + (estimate as f64 - lag).clamp(-most, most)
             }

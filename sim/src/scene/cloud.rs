@@ -223,12 +223,7 @@ impl CloudSource {
     pub(super) fn validate_external(&self) -> Result<(), SceneError> {
         // Every source: the budget holds file and ROS 2 clouds as it holds the plane.
         if let Some((name, value, expected)) = self.budget.invalid_field() {
-            return Err(SceneError::Field {
-                origin: String::new(),
-                field: budget_field(name),
-                value: format!("{value:?}"),
-                expected,
-            });
+            field(budget_field(name), value, false, expected)?;
         }
         match self.source {
             CloudKind::File => field(
