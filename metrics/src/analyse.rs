@@ -4,6 +4,7 @@ use crate::spectrum::bands_rms;
 use mmt::estimator::EstimatorStats;
 use mmt::model::backsolve::{Confidence, Params};
 use mmt::model::gates::Gated;
+use mmt::model::prior::Prior;
 use mmt::vec3;
 use node::operator::OperatorStats;
 
@@ -123,6 +124,11 @@ pub struct ExperimentReport {
     pub time_to_stable_s: Option<f64>,
     /// From the first contact until the operator renders a model [s].
     pub render_start_s: Option<f64>,
+    /// From the first tick of the operator's local contact to the first tick with a non-zero
+    /// rendered force [ms] (0: the force starts on the tick contact does).
+    pub first_force_after_local_contact_ms: Option<f64>,
+    /// What the operator rendered before its first model (`None`: nothing).
+    pub prior: Option<Prior>,
     /// The tangential estimator's a-priori reconstruction error while confident [%].
     pub reconstruction_error_pct: Option<f64>,
     /// Contact-switch latency.
@@ -192,6 +198,9 @@ pub struct NodeInfo {
     pub shadow: OperatorStats,
     /// Telerobot node counters.
     pub telerobot: TelerobotStats,
+    /// The operator's prior (what it rendered before its first model).
+    #[serde(default)]
+    pub prior: Option<Prior>,
 }
 
 /// Computes the report of a run.
@@ -226,6 +235,8 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
             (Some(fc), Some(rs)) => Some(rs.saturating_sub(fc) as f64 * dt),
             _ => None,
         },
+        first_force_after_local_contact_ms: first_force_ms(s),
+        prior: nodes.prior,
         reconstruction_error_pct: (s.reconstruction.0 > 0.0)
             .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
         contact_switch_latency_ms: latency(s),
@@ -245,6 +256,16 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         shadow_stats: nodes.shadow,
         telerobot_stats: nodes.telerobot,
     }
+}
+
+/// From the first tick of local contact to the first tick at or after it with a non-zero
+/// rendered force [ms].
+fn first_force_ms(s: &Series) -> Option<f64> {
+    let onset = s.contact_local.iter().position(|c| *c)?;
+    let ticks = s.rendered[onset..]
+        .iter()
+        .position(|f| vec3::norm2(*f) > 0.0)?;
+    Some(ticks as f64 * s.dt_s() * 1e3)
 }
 
 /// RMS of `rendered − reference` over RMS `reference` from tick `from` on [%], over the ticks

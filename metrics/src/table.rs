@@ -110,6 +110,26 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
     );
     row(
         out,
+        "first force after local contact",
+        ms(r.first_force_after_local_contact_ms),
+        "",
+    );
+    let prior = match r.prior {
+        Some(p) => format!(
+            "normal {:.0} N/m, {:.1} N·s/m ({})",
+            p.normal.k_n_per_m,
+            p.normal.b_ns_per_m,
+            match p.source {
+                mmt::model::prior::PriorSource::Generic => "generic",
+                mmt::model::prior::PriorSource::Given => "given",
+                mmt::model::prior::PriorSource::Truth => "the scene's truth",
+            }
+        ),
+        None => "none: free space until the first model".to_owned(),
+    };
+    row(out, "prior rendered before the first model", prior, "");
+    row(
+        out,
         "estimator reconstruction error",
         pct(r.reconstruction_error_pct),
         "~5 % (exp 2)",

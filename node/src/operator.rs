@@ -11,12 +11,21 @@
 //!   to that tick and replaying the stored inputs to now;
 //! - **model start mid-contact** (§11.5): when the first (or a new) model arrives during a
 //!   contact, the episode is replayed from its onset with the new model instead of starting from
-//!   F = 0 now.
+//!   F = 0 now;
+//! - **a prior** (issue 13): until the first model arrives, the normal axis renders a passive
+//!   spring–damper and the tangents a passive object ([`mmt::model::prior::Prior`]), so contact
+//!   is felt from its first tick. The first model takes over in a linear blend
+//!   (`RendererConfig::handover_s`): of the normal's parameters, and of the tangents' forces
+//!   (the model's renderers run beside the prior's from the episode's onset, replayed, so their
+//!   mass state is the model's own when the blend starts).
 
 use std::sync::Arc;
 
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
-use mmt::model::Structure;
+use mmt::model::backsolve::Params;
+use mmt::model::gates::gate_physical;
+use mmt::model::prior::Prior;
+use mmt::model::{KelvinVoigt, Structure};
 use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
 use mmt::vec3;
 use protocol::Header;
@@ -42,6 +51,10 @@ pub struct OperatorConfig {
     pub sync_gain: f64,
     /// Replay the current contact episode when a model arrives mid-contact (§11.5).
     pub replay_on_model_start: bool,
+    /// What the normal axis renders before the first model (`None`: nothing, free space).
+    /// Default: [`Prior::generic`].
+    #[serde(default)]
+    pub prior: Option<Prior>,
 }
 
 impl Default for OperatorConfig {
@@ -51,6 +64,7 @@ impl Default for OperatorConfig {
             state_sync: true,
             sync_gain: 0.1,
             replay_on_model_start: true,
+            prior: Some(Prior::generic()),
         }
     }
 }
@@ -105,6 +119,18 @@ pub(super) enum Tangential {
     Shear(ShearRenderer),
 }
 
+/// The tangents' prior (issue 13): rendered until the first model, then handed over.
+#[derive(Clone, Debug)]
+enum PriorStage {
+    /// Rendering the prior's renderers (the node's `prior_axes`).
+    Prior,
+    /// The first model renders, plus an offset per tangent (prior − model at the first tick)
+    /// that falls linearly to 0; `done` ticks of it so far.
+    HandOver { offsets: [f64; 2], done: u32 },
+    /// The model alone (or no prior at all).
+    Done,
+}
+
 /// The operator node.
 pub struct OperatorNode {
     settings: OperatorSettings,
@@ -116,6 +142,13 @@ pub struct OperatorNode {
     normal: Option<KelvinVoigtRenderer>,
     pub(super) tangential: [Tangential; 2],
     history: History,
+    /// The tangents' prior, then their hand-over to the first model.
+    prior_tangential: PriorStage,
+    /// The prior's renderers, one per tangent (kept in place after the hand-over: the loop
+    /// frees nothing).
+    prior_axes: [Tangential; 2],
+    /// The hand-over's length [ticks].
+    handover_ticks: u32,
     episode_onset_ns: Option<i64>,
     model_id: Option<u32>,
     rendering: bool,
@@ -134,7 +167,14 @@ impl OperatorNode {
         let r = settings.renderer;
         let normal = match settings.normal {
             Structure::Free => None,
-            _ => Some(KelvinVoigtRenderer::new(r)?),
+            _ => {
+                let mut renderer = KelvinVoigtRenderer::new(r)?;
+                if let Some(prior) = config.prior {
+                    prior.validate()?;
+                    renderer.set_prior(prior.normal);
+                }
+                Some(renderer)
+            }
         };
         let tangent = || -> Result<Tangential, NodeError> {
             Ok(match settings.tangential {
@@ -142,6 +182,14 @@ impl OperatorNode {
                 Structure::KelvinVoigt => Tangential::Shear(ShearRenderer::new(r)?),
                 Structure::SlidingMass { .. } => Tangential::Sliding(SlidingMassRenderer::new(r)?),
             })
+        };
+        let mut prior_axes = [tangent()?, tangent()?];
+        let prior_tangential = match config.prior {
+            Some(prior) if settings.tangential != Structure::Free => {
+                prior_targets(&mut prior_axes, settings.tangential, &prior)?;
+                PriorStage::Prior
+            }
+            _ => PriorStage::Done,
         };
         Ok(OperatorNode {
             proxy: Proxy::new(settings.proxy, device_m)
@@ -152,6 +200,9 @@ impl OperatorNode {
             normal,
             tangential: [tangent()?, tangent()?],
             history: History::new(),
+            prior_tangential,
+            prior_axes,
+            handover_ticks: (r.handover_s * r.rate_hz).round() as u32,
             episode_onset_ns: None,
             model_id: None,
             rendering: false,
@@ -337,13 +388,17 @@ impl OperatorNode {
             }
             let tangents = [frame.tangent1, frame.tangent2];
             let mut inputs = [[0.0; 2]; 2];
+            let mut f_model = [0.0; 2];
             for (i, axis) in tangents.iter().enumerate() {
                 let (x, v) = (
                     vec3::dot(position_m, *axis),
                     vec3::dot(velocity_m_per_s, *axis),
                 );
                 inputs[i] = [x, v];
-                let f = step_tangential(&mut self.tangential[i], x, v, in_contact);
+                f_model[i] = step_tangential(&mut self.tangential[i], x, v, in_contact);
+            }
+            let f_tangential = self.with_prior(f_model, inputs, in_contact);
+            for (axis, f) in tangents.iter().zip(f_tangential) {
                 force = vec3::add(force, vec3::scale(*axis, f));
             }
             self.history
@@ -352,11 +407,57 @@ impl OperatorNode {
             self.history
                 .push(now_ns, false, [[0.0; 2]; 2], &self.tangential);
         }
+        self.advance_handover();
         OperatorOutput {
             force_n: force,
             command,
             in_contact: tracked.in_contact,
             rendering: self.rendering,
+        }
+    }
+
+    /// The tangential forces with the prior: the prior's alone before the first model. On the
+    /// first tick the model renders, the difference between the two becomes an offset that
+    /// falls linearly to 0 over the hand-over: no jump, and the prior's error stops growing the
+    /// moment the model is there.
+    fn with_prior(
+        &mut self,
+        f_model: [f64; 2],
+        inputs: [[f64; 2]; 2],
+        in_contact: bool,
+    ) -> [f64; 2] {
+        match &mut self.prior_tangential {
+            PriorStage::Done => f_model,
+            PriorStage::Prior => {
+                let mut f_prior = [0.0; 2];
+                let axes = self.prior_axes.iter_mut().zip(inputs);
+                for (f, (axis, [x, v])) in f_prior.iter_mut().zip(axes) {
+                    *f = step_tangential(axis, x, v, in_contact);
+                }
+                if self.rendering {
+                    let offsets = [f_prior[0] - f_model[0], f_prior[1] - f_model[1]];
+                    self.prior_tangential = PriorStage::HandOver { offsets, done: 0 };
+                }
+                f_prior
+            }
+            PriorStage::HandOver { offsets, done } => {
+                let left = 1.0 - f64::from(*done) / f64::from(self.handover_ticks.max(1));
+                let left = left.max(0.0);
+                [
+                    f_model[0] + left * offsets[0],
+                    f_model[1] + left * offsets[1],
+                ]
+            }
+        }
+    }
+
+    /// One tick of the tangents' hand-over; it ends after its length.
+    fn advance_handover(&mut self) {
+        if let PriorStage::HandOver { done, .. } = &mut self.prior_tangential {
+            *done += 1;
+            if *done >= self.handover_ticks {
+                self.prior_tangential = PriorStage::Done;
+            }
         }
     }
 
@@ -445,6 +546,32 @@ impl OperatorNode {
     pub fn settings(&self) -> &OperatorSettings {
         &self.settings
     }
+}
+
+/// Gives each tangential prior renderer its model: the prior's object as the structure allows
+/// (a sliding mass), or its contact element (Kelvin–Voigt).
+fn prior_targets(
+    axes: &mut [Tangential; 2],
+    structure: Structure,
+    prior: &Prior,
+) -> Result<(), NodeError> {
+    let t = prior.tangential;
+    let params = match structure {
+        Structure::KelvinVoigt => Params::KelvinVoigt(KelvinVoigt {
+            k_n_per_m: t.k_contact_n_per_m,
+            b_ns_per_m: t.b_contact_ns_per_m,
+        }),
+        _ => Params::SlidingMass(t),
+    };
+    let gated = gate_physical(structure, &params).map_err(NodeError::PriorRejected)?;
+    for axis in axes {
+        match axis {
+            Tangential::Sliding(r) => r.set_target(&gated),
+            Tangential::Shear(r) => r.set_target(&gated),
+            Tangential::Free => false,
+        };
+    }
+    Ok(())
 }
 
 pub(super) fn step_tangential(t: &mut Tangential, x: f64, v: f64, in_contact: bool) -> f64 {

@@ -546,4 +546,10 @@ pub enum NodeError {
     /// A renderer setting.
     #[error(transparent)]
     Renderer(#[from] mmt::render::ConfigError),
+    /// The prior to render before the first model.
+    #[error(transparent)]
+    Prior(#[from] mmt::model::prior::PriorError),
+    /// The prior passed its own check but not the renderer's gates.
+    #[error("the prior is not renderable: {0}")]
+    PriorRejected(mmt::model::gates::GateRejection),
 }

@@ -136,6 +136,8 @@ pub struct LoopEnd {
     pub parameters: Option<Parameters>,
     /// Sessions whose node the loop ran.
     pub sessions: u64,
+    /// The last node's prior (what it renders before its first model).
+    pub prior: Option<mmt::model::prior::Prior>,
 }
 
 impl HapticLoop {
@@ -169,6 +171,7 @@ impl HapticLoop {
             safety: self.safety.stats(),
             force_record: *self.device.force_record(),
             node: self.node.stats(),
+            prior: self.node.config().prior,
             renderers: self.node.renderer_stats(),
             device: self.device,
             ticks: state.ticks,

@@ -378,6 +378,7 @@ fn report_of(device: Box<dyn HapticDevice>) -> operator::report::NetworkedReport
         frame: None,
         parameters: None,
         sessions: 1,
+        prior: None,
     };
     report::build(&facts, &Default::default(), &end).1
 }

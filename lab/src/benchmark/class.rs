@@ -16,6 +16,7 @@
 //! proxy, filter cut-off, forgetting) is the exp-1 scene's, so what changes between objects is
 //! the object alone. The same seed draws the same objects.
 
+use mmt::model::prior::{SOFT_OBJECTS, SoftObjectRanges};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
@@ -79,36 +80,25 @@ impl Object {
     }
 }
 
-/// The ranges of the class (see the module docs).
+/// The class (see the module docs): the soft-object ranges, and how many objects are
+/// spring-mounted.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectClass {
-    /// m [kg], log-uniform.
-    pub mass_kg: (f64, f64),
-    /// k2 [N/m], log-uniform.
-    pub k_contact_n_per_m: (f64, f64),
-    /// b1 and b2 [N·s/m], log-uniform each.
-    pub damping_ns_per_m: (f64, f64),
-    /// Fs [N], uniform.
-    pub static_friction_n: (f64, f64),
-    /// Fc / Fs.
-    pub coulomb_ratio: f64,
-    /// Fraction of the objects tied to the world by a ground spring.
+    /// The ranges of each term.
+    #[serde(flatten)]
+    pub ranges: SoftObjectRanges,
+    /// Fraction of the objects tied to the world by a ground spring (`k1` from
+    /// `ranges.k_ground_n_per_m`).
     pub spring_fraction: f64,
-    /// k1 [N/m] of those, log-uniform.
-    pub k_ground_n_per_m: (f64, f64),
 }
 
 impl Default for ObjectClass {
-    /// Issue 12's class.
+    /// Issue 12's class: the soft-object ranges the operator's generic prior is the centre of
+    /// ([`SOFT_OBJECTS`]), 30 % of the objects on a ground spring.
     fn default() -> Self {
         ObjectClass {
-            mass_kg: (0.2, 5.0),
-            k_contact_n_per_m: (200.0, 3000.0),
-            damping_ns_per_m: (5.0, 100.0),
-            static_friction_n: (0.0, 1.5),
-            coulomb_ratio: 0.7,
+            ranges: SOFT_OBJECTS,
             spring_fraction: 0.3,
-            k_ground_n_per_m: (50.0, 500.0),
         }
     }
 }
@@ -121,16 +111,17 @@ impl ObjectClass {
         let log_uniform = |rng: &mut Pcg64, (lo, hi): (f64, f64)| -> f64 {
             (lo.ln() + rng.random::<f64>() * (hi.ln() - lo.ln())).exp()
         };
+        let r = &self.ranges;
         (0..n)
             .map(|i| {
-                let mass_kg = log_uniform(&mut rng, self.mass_kg);
-                let k_contact = log_uniform(&mut rng, self.k_contact_n_per_m);
-                let b_ground = log_uniform(&mut rng, self.damping_ns_per_m);
-                let b_contact = log_uniform(&mut rng, self.damping_ns_per_m);
-                let (f0, f1) = self.static_friction_n;
+                let mass_kg = log_uniform(&mut rng, r.mass_kg);
+                let k_contact = log_uniform(&mut rng, r.k_contact_n_per_m);
+                let b_ground = log_uniform(&mut rng, r.damping_ns_per_m);
+                let b_contact = log_uniform(&mut rng, r.damping_ns_per_m);
+                let (f0, f1) = r.static_friction_n;
                 let fs = f0 + rng.random::<f64>() * (f1 - f0);
                 let spring = rng.random::<f64>() < self.spring_fraction;
-                let k_ground = log_uniform(&mut rng, self.k_ground_n_per_m);
+                let k_ground = log_uniform(&mut rng, r.k_ground_n_per_m);
                 Object {
                     name: format!("class-{i:02}"),
                     mass_kg: round4(mass_kg),
@@ -139,7 +130,7 @@ impl ObjectClass {
                     k_contact_n_per_m: round4(k_contact),
                     b_contact_ns_per_m: round4(b_contact),
                     static_friction_n: round4(fs),
-                    coulomb_friction_n: round4(self.coulomb_ratio * round4(fs)),
+                    coulomb_friction_n: round4(r.coulomb_ratio * round4(fs)),
                     ground_spring: spring,
                 }
             })

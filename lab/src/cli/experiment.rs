@@ -3,6 +3,7 @@
 use crate::experiment::{ExperimentConfig, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
+use mmt::model::prior::{Prior, PriorSource};
 use sim::scene::Scene;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +42,12 @@ pub struct ExperimentArgs {
     /// Disable state sync.
     #[arg(long)]
     no_sync: bool,
+    /// What the operator renders before the first model: generic (the default: the centre of
+    /// the soft-object class), none (free space), truth (the scene's true object: the floor a
+    /// perfect prior sets), or K,B (the normal's stiffness and damping in N/m and N·s/m; the
+    /// tangents keep the generic object).
+    #[arg(long, default_value = "generic")]
+    prior: String,
     /// Uniform jitter each way [ms] (order kept).
     #[arg(long, default_value_t = 0.0)]
     jitter_ms: f64,
@@ -163,6 +170,36 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
     Ok(())
 }
 
+/// The `--prior` value.
+fn prior(value: &str, scene: &Scene) -> Result<Option<Prior>> {
+    let env = &scene.environment;
+    Ok(match value {
+        "generic" => Some(Prior::generic()),
+        "none" => None,
+        "truth" => {
+            let prior = Prior {
+                tangential: env.physical(),
+                source: PriorSource::Truth,
+                ..Prior::given(env.k_contact_n_per_m, env.b_contact_ns_per_m)?
+            };
+            prior.validate()?;
+            Some(prior)
+        }
+        given => {
+            let parsed = given
+                .split_once(',')
+                .and_then(|(k, b)| Some((k.trim().parse().ok()?, b.trim().parse().ok()?)));
+            let Some((k, b)) = parsed else {
+                anyhow::bail!(
+                    "--prior {given}: expected generic, none, truth, or K,B (stiffness in N/m, \
+                     damping in N·s/m, e.g. 500,20)"
+                );
+            };
+            Some(Prior::given(k, b).with_context(|| format!("--prior {given}"))?)
+        }
+    })
+}
+
 /// The experiment the options describe.
 fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     let kind = Kind::parse(&args.name)?;
@@ -189,6 +226,7 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     }
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
+    config.operator.prior = prior(&args.prior, &config.scene)?;
     config.jitter_ms = args.jitter_ms;
     link_faults(&mut config, args)?;
     Ok(config)
@@ -218,6 +256,46 @@ mod tests {
             assert_eq!(spaced, equals, "{flag}");
             assert!(spaced.contains(value), "{spaced}");
         }
+    }
+
+    #[test]
+    fn the_prior_flag_names_what_it_wants() {
+        let scene = Scene::exp1();
+        assert_eq!(prior("generic", &scene).unwrap(), Some(Prior::generic()));
+        assert_eq!(prior("none", &scene).unwrap(), None);
+        let truth = prior("truth", &scene).unwrap().unwrap();
+        assert_eq!(
+            (
+                truth.normal.k_n_per_m,
+                truth.normal.b_ns_per_m,
+                truth.source
+            ),
+            (500.0, 60.0, PriorSource::Truth)
+        );
+        assert_eq!(truth.tangential, scene.environment.physical());
+        let given = prior("800, 20", &scene).unwrap().unwrap();
+        assert_eq!(
+            (
+                given.normal.k_n_per_m,
+                given.normal.b_ns_per_m,
+                given.source
+            ),
+            (800.0, 20.0, PriorSource::Given)
+        );
+        assert_eq!(given.tangential, Prior::generic().tangential);
+        for bad in ["stiff", "800", "800,x"] {
+            let e = prior(bad, &scene).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&format!("--prior {bad}: expected generic")),
+                "{e}"
+            );
+        }
+        let e = format!("{:#}", prior("-1,20", &scene).unwrap_err());
+        assert_eq!(
+            e,
+            "--prior -1,20: prior normal.k_n_per_m = -1 is invalid: expected a finite value \
+             above 0 (damping, mass, ground spring and friction: 0 or more)"
+        );
     }
 
     /// Before: `--loss-pct 150` was refused as "loss = 1.5: a fraction".

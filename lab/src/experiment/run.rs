@@ -415,6 +415,7 @@ impl Harness {
             operator: self.operator.node.stats(),
             shadow: self.operator.shadow.stats(),
             telerobot: telerobot.stats(),
+            prior: self.operator.node.config().prior,
         };
         if let Some(r) = self.record {
             r.finish(self.ticks as i64 * self.period_ns, self.ticks, &nodes);

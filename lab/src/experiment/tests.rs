@@ -2,6 +2,7 @@
 
 use super::*;
 use mmt::model::backsolve::Confidence;
+use mmt::model::prior::Prior;
 use mmt::vec3;
 
 fn run_with(
@@ -283,4 +284,87 @@ fn a_run_without_rendering_reports_no_error_figures() {
     );
     let json = serde_json::to_value(&r).unwrap();
     assert!(json["bands"][0]["rms_error_pct"].is_null());
+}
+
+/// Issue 13: before, a new object rendered nothing for 1.1 s after first contact (exp 1, the
+/// time the first model takes). The generic prior renders from the first tick of local contact.
+#[test]
+fn the_prior_is_felt_from_the_first_tick_of_local_contact() {
+    let (series, with) = run_with(Kind::Exp1, 4.0, |_| {});
+    let (series_without, without) = run_with(Kind::Exp1, 4.0, |c| c.operator.prior = None);
+    assert_eq!(with.prior, Some(Prior::generic()));
+    assert_eq!(with.first_force_after_local_contact_ms, Some(0.0));
+    let late = without.first_force_after_local_contact_ms.unwrap();
+    assert!(late >= 500.0, "without a prior: {late} ms");
+    // Contact is never rendered as free space: every tick in local contact pushes.
+    let onset = series.contact_local.iter().position(|c| *c).unwrap();
+    let first_model = series.rendering.iter().position(|r| *r).unwrap();
+    assert!(first_model > onset + 500, "{onset} {first_model}");
+    let free = (onset..first_model)
+        .filter(|&i| series.contact_local[i] && vec3::norm2(series.rendered[i]) == 0.0)
+        .count();
+    assert_eq!(free, 0, "ticks in contact rendered as free space");
+    let (w, wo) = (with.rms_error_pct.unwrap(), without.rms_error_pct.unwrap());
+    assert!(
+        w < 0.8 * wo,
+        "from first contact: {w:.2} % with, {wo:.2} % without"
+    );
+    // The hand-over to the first model has no jump: within the safety layer's default force-rate
+    // limit (1,000 N/s, 1 N a tick). Without a prior the model starts with a step.
+    let step = |s: &Series| {
+        let at = s.rendering.iter().position(|r| *r).unwrap();
+        (at - 5..at + 100)
+            .map(|i| vec3::norm(vec3::sub(s.rendered[i], s.rendered[i - 1])))
+            .fold(0.0, f64::max)
+    };
+    let (smooth, jump) = (step(&series), step(&series_without));
+    assert!(smooth <= 1.0, "hand-over step {smooth:.2} N");
+    assert!(jump > 1.0, "without a prior: {jump:.2} N");
+}
+
+/// Issue 13: a prior far from the truth (×0.2 and ×5 in stiffness) costs accuracy for a bounded
+/// time only, and never stability: the force stays on the scale of the measured one, and from
+/// 1 s after the first model on, the error is what it is with no prior at all.
+#[test]
+fn a_prior_far_from_the_truth_costs_accuracy_for_a_bounded_time_only() {
+    for kind in [Kind::Exp1, Kind::Exp3] {
+        let (_, none) = run_with(kind, 20.0, |c| c.operator.prior = None);
+        for scale in [0.2, 5.0] {
+            let (series, r) = run_with(kind, 20.0, |c| {
+                let env = c.scene.environment;
+                let mut prior =
+                    Prior::given(scale * env.k_contact_n_per_m, env.b_contact_ns_per_m).unwrap();
+                prior.tangential = env.physical();
+                prior.tangential.k_contact_n_per_m *= scale;
+                c.operator.prior = Some(prior);
+            });
+            let largest = |v: &[[f64; 3]]| v.iter().map(|f| vec3::norm(*f)).fold(0.0, f64::max);
+            let measured: Vec<[f64; 3]> = series.measured.iter().flatten().copied().collect();
+            let (rendered, measured) = (largest(&series.rendered), largest(&measured));
+            assert!(
+                rendered.is_finite() && rendered <= 3.0 * measured,
+                "{kind:?} ×{scale}: largest force {rendered:.1} N, measured {measured:.1} N"
+            );
+            let start = r.render_start_s.unwrap() + first_contact_s(&series) + 1.0;
+            let windows = r.error_over_time.iter().zip(&none.error_over_time);
+            for (w, n) in windows.filter(|(w, _)| w.t_s >= start) {
+                let (e, e_none) = (
+                    w.rms_error_pct.unwrap_or(0.0),
+                    n.rms_error_pct.unwrap_or(0.0),
+                );
+                assert!(
+                    (e - e_none).abs() <= 0.5,
+                    "{kind:?} ×{scale}: {e:.2} % at {} s, {e_none:.2} % with no prior",
+                    w.t_s
+                );
+            }
+            let after = r.rms_error_pct_after_stable.unwrap();
+            assert!(after <= 5.0, "{kind:?} ×{scale}: after stable {after:.2} %");
+        }
+    }
+}
+
+fn first_contact_s(series: &Series) -> f64 {
+    let i = series.contact_true.iter().position(|c| *c == Some(true));
+    i.unwrap() as f64 * series.dt_s()
 }

@@ -19,6 +19,7 @@
 
 pub mod backsolve;
 pub mod gates;
+pub mod prior;
 
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};

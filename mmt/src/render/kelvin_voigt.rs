@@ -1,5 +1,5 @@
 //! The Kelvin–Voigt renderer: the normal axis against a surface (thesis eq. 8), or any axis of a
-//! rigid-ish wall. Stateless apart from parameter smoothing.
+//! rigid-ish wall. Stateless apart from parameter smoothing and the hand-over from a prior.
 
 use super::{Adjustments, ConfigError, RendererConfig, RendererStats, smooth};
 use crate::model::KelvinVoigt;
@@ -13,28 +13,55 @@ pub struct KelvinVoigtRenderer {
     alpha: f64,
     target: Option<KelvinVoigt>,
     current: Option<KelvinVoigt>,
+    /// Rendered until the first target arrives, then blended out over `handover_ticks`.
+    prior: Option<KelvinVoigt>,
+    /// Ticks of the hand-over from the prior to the first target done so far (`None`: no
+    /// hand-over under way).
+    handover: Option<u32>,
+    handover_ticks: u32,
     adjustments: Adjustments,
     stats: RendererStats,
 }
 
 impl KelvinVoigtRenderer {
-    /// A renderer with no parameters yet (it renders 0 until the first gated set arrives).
+    /// A renderer with no parameters yet (it renders 0, or its prior, until the first gated set
+    /// arrives).
     pub fn new(config: RendererConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(KelvinVoigtRenderer {
             alpha: config.smoothing_alpha(),
+            handover_ticks: (config.handover_s * config.rate_hz).round() as u32,
             config,
             target: None,
             current: None,
+            prior: None,
+            handover: None,
             adjustments: Adjustments::default(),
             stats: RendererStats::default(),
         })
+    }
+
+    /// Renders `prior` until the first parameter set arrives, then blends from it to that set
+    /// linearly over the configured hand-over time (every blend is a convex combination of two
+    /// passive sets, hence passive). Ignored once a set has arrived. The caller checks the prior
+    /// ([`crate::model::prior::Prior::validate`]); a non-finite or negative one is ignored.
+    pub fn set_prior(&mut self, prior: KelvinVoigt) {
+        let valid = prior.k_n_per_m.is_finite()
+            && prior.k_n_per_m >= 0.0
+            && prior.b_ns_per_m.is_finite()
+            && prior.b_ns_per_m >= 0.0;
+        if valid && self.target.is_none() {
+            self.prior = Some(prior);
+        }
     }
 
     /// Sets the parameters to smooth towards; `false` (ignored) if not Kelvin–Voigt.
     pub fn set_target(&mut self, params: &Gated) -> bool {
         match params.kelvin_voigt() {
             Some(kv) => {
+                if self.target.is_none() && self.prior.is_some() {
+                    self.handover = Some(0);
+                }
                 self.target = Some(kv);
                 self.stats.parameter_updates += 1;
                 true
@@ -166,10 +193,15 @@ impl ShearRenderer {
 }
 
 impl KelvinVoigtRenderer {
-    /// One tick of parameter smoothing towards the target, then Colgate's clip (counted and
-    /// reported): the `(k, b)` to render, `None` before any parameters.
+    /// One tick of parameter smoothing towards the target (blended from the prior while handing
+    /// over), then Colgate's clip (counted and reported): the `(k, b)` to render; the prior's
+    /// before any parameters, `None` with no prior either.
     fn advance_parameters(&mut self) -> Option<(f64, f64)> {
-        let target = self.target?;
+        let Some(target) = self.target else {
+            let prior = self.prior?;
+            self.stats.prior_ticks += 1;
+            return Some(self.clip(prior));
+        };
         let current = match self.current {
             None => target,
             Some(c) => KelvinVoigt {
@@ -178,13 +210,31 @@ impl KelvinVoigtRenderer {
             },
         };
         self.current = Some(current);
-        let (k, b) = self.config.colgate(current.k_n_per_m, current.b_ns_per_m);
-        self.adjustments.stiffness_clipped =
-            (k < current.k_n_per_m).then_some((current.k_n_per_m, k));
+        let rendered = match (self.handover, self.prior) {
+            (Some(done), Some(prior)) if done < self.handover_ticks => {
+                self.handover = Some(done + 1);
+                let w = f64::from(done + 1) / f64::from(self.handover_ticks);
+                KelvinVoigt {
+                    k_n_per_m: prior.k_n_per_m + w * (current.k_n_per_m - prior.k_n_per_m),
+                    b_ns_per_m: prior.b_ns_per_m + w * (current.b_ns_per_m - prior.b_ns_per_m),
+                }
+            }
+            _ => {
+                self.handover = None;
+                current
+            }
+        };
+        Some(self.clip(rendered))
+    }
+
+    /// Colgate's clip of `p`, counted and reported.
+    fn clip(&mut self, p: KelvinVoigt) -> (f64, f64) {
+        let (k, b) = self.config.colgate(p.k_n_per_m, p.b_ns_per_m);
+        self.adjustments.stiffness_clipped = (k < p.k_n_per_m).then_some((p.k_n_per_m, k));
         if self.adjustments.stiffness_clipped.is_some() {
             self.stats.clipped_ticks += 1;
         }
-        Some((k, b))
+        (k, b)
     }
 
     /// `k d + b ḋ` (either sign) with smoothing and Colgate's clip, 0 out of contact.

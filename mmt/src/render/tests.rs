@@ -483,6 +483,7 @@ fn config_validation_names_the_field() {
 }
 
 mod passivity;
+mod prior;
 mod transfer_scope;
 
 /// `mmt benchmark --seed 1`, class object 27 (spring-mounted, k1 88, k2 773): the back-solve

@@ -172,6 +172,7 @@ pub fn node_info(truth: Option<&Scene>, end: &LoopEnd) -> NodeInfo {
     NodeInfo {
         parameters,
         operator: end.node,
+        prior: end.prior,
         ..NodeInfo::default()
     }
 }

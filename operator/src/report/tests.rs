@@ -35,6 +35,7 @@ fn report(safety: SafetyStats, renderers: Vec<RendererStats>) -> NetworkedReport
         frame: None,
         parameters: None,
         sessions: 1,
+        prior: None,
     };
     build(&facts(), &Recording::default(), &end).1
 }
@@ -166,6 +167,7 @@ fn an_outage_across_a_reconnect_is_counted_and_its_windows_marked() {
         frame: None,
         parameters: None,
         sessions: 2,
+        prior: None,
     };
     let mut rec = Recording::default();
     // 10 s of ticks; measurements every ms but for 2.0 s to 7.5 s.
