@@ -8,7 +8,7 @@ use mmt::model::prior::Prior;
 use mmt::vec3;
 use node::operator::OperatorStats;
 
-use crate::Series;
+use crate::{Series, onset};
 use node::telerobot::TelerobotStats;
 use serde::{Deserialize, Serialize};
 use sim::scene::Scene;
@@ -127,6 +127,11 @@ pub struct ExperimentReport {
     /// From the first tick of the operator's local contact to the first tick with a non-zero
     /// rendered force [ms] (0: the force starts on the tick contact does).
     pub first_force_after_local_contact_ms: Option<f64>,
+    /// From the first contact until the error stays within 10 % in every 250 ms window to the
+    /// end [s] (`onset::settle_s`).
+    pub settle_s: Option<f64>,
+    /// The error in the 1 s after each re-contact (every contact but the first), pooled [%].
+    pub recontact_error_pct: Option<f64>,
     /// What the operator rendered before its first model (`None`: nothing).
     pub prior: Option<Prior>,
     /// The tangential estimator's a-priori reconstruction error while confident [%].
@@ -235,7 +240,9 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
             (Some(fc), Some(rs)) => Some(rs.saturating_sub(fc) as f64 * dt),
             _ => None,
         },
-        first_force_after_local_contact_ms: first_force_ms(s),
+        first_force_after_local_contact_ms: onset::first_force_ms(s),
+        settle_s: onset::settle_s(s),
+        recontact_error_pct: onset::recontact_error_pct(s),
         prior: nodes.prior,
         reconstruction_error_pct: (s.reconstruction.0 > 0.0)
             .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
@@ -256,16 +263,6 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         shadow_stats: nodes.shadow,
         telerobot_stats: nodes.telerobot,
     }
-}
-
-/// From the first tick of local contact to the first tick at or after it with a non-zero
-/// rendered force [ms].
-fn first_force_ms(s: &Series) -> Option<f64> {
-    let onset = s.contact_local.iter().position(|c| *c)?;
-    let ticks = s.rendered[onset..]
-        .iter()
-        .position(|f| vec3::norm2(*f) > 0.0)?;
-    Some(ticks as f64 * s.dt_s() * 1e3)
 }
 
 /// RMS of `rendered − reference` over RMS `reference` from tick `from` on [%], over the ticks

@@ -14,6 +14,7 @@
 mod analyse;
 mod csv;
 pub mod networked;
+pub mod onset;
 mod series;
 pub mod spectrum;
 mod table;

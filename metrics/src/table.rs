@@ -114,6 +114,18 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
         ms(r.first_force_after_local_contact_ms),
         "",
     );
+    row(
+        out,
+        "error settles within 10 % (250 ms windows)",
+        sec(r.settle_s),
+        "",
+    );
+    row(
+        out,
+        "error in the 1 s after each re-contact",
+        pct(r.recontact_error_pct),
+        "",
+    );
     let prior = match r.prior {
         Some(p) => format!(
             "normal {:.0} N/m, {:.1} N·s/m ({})",
