@@ -23,15 +23,22 @@ pub(crate) fn first_force_ms(s: &Series) -> Option<f64> {
 }
 
 /// From the first true contact until the error stays within [`SETTLE_PCT`] in every
-/// [`SETTLE_WINDOW_S`] window to the end \[s\]. Windows whose measured force is 0.05 N RMS or
-/// less (free space) are not judged. `None` with no contact, or when the last judged window is
-/// still beyond the bound.
+/// [`SETTLE_WINDOW_S`] window to the end \[s\]. Only windows in true contact for at least half
+/// their ticks, with a measured force above 0.05 N RMS, are judged: in free space the measured
+/// force is the sensor's noise, and 0 rendered is right. `None` with no contact, or when the
+/// last judged window is still beyond the bound.
 pub fn settle_s(s: &Series) -> Option<f64> {
     let first = s.contact_true.iter().position(|c| *c == Some(true))?;
     let per = ((SETTLE_WINDOW_S / s.dt_s()).round() as usize).max(1);
     let mut settled_from = None;
     for start in (first..s.len()).step_by(per) {
         let end = (start + per).min(s.len());
+        let touching = (start..end)
+            .filter(|&i| s.contact_true[i] == Some(true))
+            .count();
+        if 2 * touching < end - start {
+            continue;
+        }
         match window_pct(s, start, end) {
             Some(e) if e > SETTLE_PCT => settled_from = None,
             Some(_) if settled_from.is_none() => settled_from = Some(start),
@@ -119,6 +126,18 @@ mod tests {
         assert_eq!(settle_s(&s), None);
         // Settled from the first window: 0 s.
         let s = series(1000, |i| i >= 100, |_| 1.05);
+        assert_eq!(settle_s(&s), Some(0.0));
+        // Free space with a noisy sensor (0.1 N measured, 0 rendered) is not judged.
+        let mut s = series(
+            3000,
+            |i| !(1000..2000).contains(&i),
+            |i| {
+                if (1000..2000).contains(&i) { 0.0 } else { 1.0 }
+            },
+        );
+        for m in &mut s.measured[1000..2000] {
+            *m = Some([0.1, 0.0, 0.0]);
+        }
         assert_eq!(settle_s(&s), Some(0.0));
     }
 
