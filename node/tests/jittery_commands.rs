@@ -24,19 +24,32 @@ const MS: i64 = 1_000_000;
 
 /// Arrival times of commands sampled every millisecond from 0 to `n` ms, over a link of
 /// `delay_ms` one way: uniform jitter of `jitter_ms`, the scheduler's tail (mostly tens of
-/// microseconds, now and then milliseconds), `loss` of them lost, order kept. `None`: lost.
-fn arrivals(n: i64, delay_ms: f64, jitter_ms: f64, loss: f64, seed: u64) -> Vec<Option<i64>> {
+/// microseconds, now and then milliseconds), `loss` of them lost, order kept (`None`: lost);
+/// and, with `stall`, the operator's loop stalled for `stall.1` ms every `stall.0` ms: the
+/// commands of the stalled ticks are sent together when it wakes (a loaded machine).
+fn arrivals_with_stalls(
+    n: i64,
+    delay_ms: f64,
+    jitter_ms: f64,
+    loss: f64,
+    seed: u64,
+    stall: Option<(i64, i64)>,
+) -> Vec<Option<i64>> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let mut last = 0_i64;
     (0..n)
         .map(|k| {
+            let sent = match stall {
+                Some((every, length)) if k % every < length => (k - k % every + length) * MS,
+                _ => k * MS,
+            };
             let tail_ms = if rng.random_bool(0.01) {
                 rng.random_range(0.5..4.0)
             } else {
                 rng.random_range(0.0..0.1)
             };
             let lag_ms = delay_ms + rng.random_range(0.0..jitter_ms) + tail_ms;
-            let at = (k * MS + (lag_ms * 1e6) as i64).max(last);
+            let at = (sent + (lag_ms * 1e6) as i64).max(last);
             last = at;
             (!rng.random_bool(loss)).then_some(at)
         })
@@ -58,6 +71,11 @@ struct Played {
 /// The exp-1 trajectory for `seconds`, commanded over the link of [`arrivals`], executed by the
 /// simulated exp-1 world (the robot behind its motion guard, as in the daemon) each tick.
 fn play(seconds: f64, seed: u64) -> Played {
+    play_with_stalls(seconds, seed, None)
+}
+
+/// [`play`] with the operator's loop stalling ([`arrivals_with_stalls`]).
+fn play_with_stalls(seconds: f64, seed: u64, stall: Option<(i64, i64)>) -> Played {
     let scene = Scene::exp1();
     let settings = scene.telerobot_settings();
     let period = settings.period_ns;
@@ -75,7 +93,7 @@ fn play(seconds: f64, seed: u64) -> Played {
     let mut bridge = SimBridge::new(&scene, start, seed).unwrap();
     let n = (seconds * 1e9 / period as f64) as i64;
     let delay_ms = 400.0;
-    let arrive = arrivals(n, delay_ms, 2.0, 0.02, seed);
+    let arrive = arrivals_with_stalls(n, delay_ms, 2.0, 0.02, seed, stall);
     let mut order: Vec<(i64, i64)> = arrive
         .iter()
         .enumerate()
@@ -183,6 +201,29 @@ fn the_velocity_handed_to_the_robot_is_the_rate_of_its_path() {
             "seed {seed}: velocity off its path's rate by {:.1} % RMS, {worst:.4} m/s at worst \
              (largest {largest:.3} m/s)",
             100.0 * rms
+        );
+    }
+}
+
+/// Issue 11's soaks under load, still open: a reset every few minutes, with the motion guard
+/// clamping a step just before. The operator's loop, starved by other work, sends a stall's
+/// commands late and together; the playout bridges 10 ms, then stops the path until they come
+/// (a velocity step the simulated robot takes at once), and the estimator resets its model.
+/// Today (seeds 1–3, 40 s, stalls of 30 ms every 2 s, 60 every 3 s, 15 every 1.5 s): worst kink
+/// 0.48/1.00/0.59 of the largest step, 3/5/2 resets, 12/86/0 commands skipped. A decaying
+/// envelope of the lag (so that a stall raises `L` for the next one) gave 2/8/1 resets: not
+/// kept. Run with `--ignored` to see it fail.
+#[test]
+#[ignore = "issue 11, open: a stalling operator loop still resets the model"]
+fn a_stalling_operator_loop_plays_a_smooth_path_and_no_model_is_reset() {
+    for (seed, stall) in [(1, (2000, 30)), (2, (3000, 60)), (3, (1500, 15))] {
+        let p = play_with_stalls(40.0, seed, Some(stall));
+        let kink = worst_kink(&p);
+        assert!(
+            kink < 0.2 && p.new_objects == 0,
+            "seed {seed}, stalls {stall:?} ms: kink {kink:.2}, {} resets, {} skipped",
+            p.new_objects,
+            p.skipped
         );
     }
 }
