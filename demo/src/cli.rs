@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use clap::Parser;
-use operator::cli::RtArgs;
+use operator::cli::{PriorArgs, RtArgs};
 use rt::Shutdown;
 
 use crate::report::{banner, files, table};
@@ -42,6 +42,9 @@ pub struct Cli {
     /// Loop options (both loops; the shim spins half the window).
     #[command(flatten)]
     pub rt: RtArgs,
+    /// What the operator renders before the first model.
+    #[command(flatten)]
+    pub prior: PriorArgs,
     /// Connect the operator to the telerobot directly, without the netem shim (needs
     /// --delay-ms 0): the loopback latency figure.
     #[arg(long)]
@@ -73,6 +76,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         spin_us: args.rt.spin_us,
         realtime_priority: args.rt.realtime_priority,
         via_shim: !args.no_shim,
+        node: args.prior.node_config()?,
         ..DemoConfig::default()
     };
     config.validate()?;

@@ -56,6 +56,8 @@ pub struct DemoConfig {
     pub loss_pct: f64,
     /// Uniform jitter (half-width) the shim adds in each direction \[ms\], 0 to 100. Default 0.
     pub jitter_ms: f64,
+    /// The operator node's settings (its prior). Default `OperatorConfig::default()`.
+    pub node: node::operator::OperatorConfig,
     /// The soak's consumer of every tick and measurement; with it, runs up to 24 h are allowed
     /// (the operator's recording keeps only the tap's `keep_ticks`). Default none: up to 600 s.
     pub tap: Option<operator::helper::Tap>,
@@ -69,6 +71,7 @@ impl Default for DemoConfig {
             spin_us: 100.0,
             seed: 1,
             realtime_priority: None,
+            node: node::operator::OperatorConfig::default(),
             via_shim: true,
             record: None,
             scene: Scene::exp1(),
@@ -331,7 +334,7 @@ fn operator_config(
         periodic,
         realtime_priority: config.realtime_priority,
         first_session_timeout: Some(Duration::from_secs(15)),
-        node: node::operator::OperatorConfig::default(),
+        node: config.node,
         experiment: "demo".to_owned(),
         known: Some(Known {
             scene,

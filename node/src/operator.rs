@@ -14,10 +14,11 @@
 //!   F = 0 now;
 //! - **a prior** (issue 13): until the first model arrives, the normal axis renders a passive
 //!   spring–damper and the tangents a passive object ([`mmt::model::prior::Prior`]), so contact
-//!   is felt from its first tick. The first model takes over in a linear blend
-//!   (`RendererConfig::handover_s`): of the normal's parameters, and of the tangents' forces
-//!   (the model's renderers run beside the prior's from the episode's onset, replayed, so their
-//!   mass state is the model's own when the blend starts).
+//!   is felt from its first tick. The first model takes over in a linear hand-over
+//!   (`RendererConfig::handover_s`): the normal's parameters are blended, and on the tangents
+//!   the offset between the prior's force and the model's at the first model tick falls to 0
+//!   (the model's renderers run beside the prior's from the episode's onset, replayed at model
+//!   start, so their mass state is the model's own).
 
 use std::sync::Arc;
 
@@ -51,8 +52,8 @@ pub struct OperatorConfig {
     pub sync_gain: f64,
     /// Replay the current contact episode when a model arrives mid-contact (§11.5).
     pub replay_on_model_start: bool,
-    /// What the normal axis renders before the first model (`None`: nothing, free space).
-    /// Default: [`Prior::generic`].
+    /// What the normal and tangential axes render before the first model (`None`: nothing,
+    /// free space). Default: [`Prior::generic`].
     #[serde(default)]
     pub prior: Option<Prior>,
 }

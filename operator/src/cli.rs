@@ -21,7 +21,7 @@ use clap::{Args, Parser, Subcommand};
 use rt::Shutdown;
 
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
-pub use run::{LoopArgs, RtArgs, emit};
+pub use run::{LoopArgs, PriorArgs, RtArgs, emit};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
 use crate::device::spacemouse::{self, HidEntry, SpaceMouseConfig, report::KNOWN_DEVICES};
@@ -348,6 +348,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     // Every flag is checked before anything is printed or opened (issue 11: a range error came
     // after the "network:" line), also when no telerobot is given.
     args.run.periodic()?;
+    args.run.prior.node_config()?;
     let net = args.net.config()?;
     let options = OpenOptions {
         scripted_length_s: args.run.seconds,

@@ -6,7 +6,7 @@ use std::sync::mpsc::Receiver;
 
 use anyhow::Context as _;
 use clap::Parser;
-use operator::cli::RtArgs;
+use operator::cli::{PriorArgs, RtArgs};
 use operator::helper::{Tap, Tapped};
 use rt::Shutdown;
 use serde::Serialize;
@@ -62,6 +62,9 @@ pub struct SoakCli {
     /// Loop options (both loops; the shim spins half the window).
     #[command(flatten)]
     pub rt: RtArgs,
+    /// What the operator renders before the first model.
+    #[command(flatten)]
+    pub prior: PriorArgs,
     /// Run nothing: print the verdict of the rows of an earlier soak's soak.json (as this
     /// version judges them).
     #[arg(long, value_name = "SOAK_JSON")]
@@ -111,6 +114,7 @@ pub fn run_cmd(
         spin_us: args.rt.spin_us,
         realtime_priority: args.rt.realtime_priority,
         seed: args.seed,
+        node: args.prior.node_config()?,
         loss_pct: args.loss_pct,
         jitter_ms: args.jitter_ms,
         tap: Some(Tap {

@@ -156,6 +156,27 @@ impl Prior {
     }
 }
 
+/// What a `--prior` value may be: `generic`, `none`, or `K,B` (the normal's stiffness in N/m and
+/// damping in N·s/m; the tangents keep the generic object).
+pub const PRIOR_VALUES: &str =
+    "generic, none, or K,B (the normal's stiffness in N/m and damping in N·s/m, e.g. 500,20)";
+
+/// Parses a `--prior` value ([`PRIOR_VALUES`]); `None` for `none`. The error says what was
+/// wrong, for the caller to prefix with the flag and the value.
+pub fn parse(value: &str) -> Result<Option<Prior>, String> {
+    match value {
+        "generic" => Ok(Some(Prior::generic())),
+        "none" => Ok(None),
+        given => {
+            let parsed = given
+                .split_once(',')
+                .and_then(|(k, b)| Some((k.trim().parse().ok()?, b.trim().parse().ok()?)));
+            let (k, b) = parsed.ok_or_else(|| format!("expected {PRIOR_VALUES}"))?;
+            Prior::given(k, b).map(Some).map_err(|e| e.to_string())
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,6 +203,34 @@ mod tests {
         // The worst case over the class: its ends, ×3.87 either way.
         let (lo, hi) = SOFT_OBJECTS.k_contact_n_per_m;
         assert!((p.normal.k_n_per_m / lo - hi / p.normal.k_n_per_m).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_prior_value_is_parsed_or_refused_with_what_was_expected() {
+        assert_eq!(parse("generic"), Ok(Some(Prior::generic())));
+        assert_eq!(parse("none"), Ok(None));
+        let given = parse("800, 20").unwrap().unwrap();
+        assert_eq!(
+            (
+                given.normal.k_n_per_m,
+                given.normal.b_ns_per_m,
+                given.source
+            ),
+            (800.0, 20.0, PriorSource::Given)
+        );
+        assert_eq!(given.tangential, Prior::generic().tangential);
+        for bad in ["stiff", "800", "800,x", ""] {
+            assert_eq!(
+                parse(bad),
+                Err(format!("expected {PRIOR_VALUES}")),
+                "{bad:?}"
+            );
+        }
+        assert!(
+            parse("-1,20")
+                .unwrap_err()
+                .contains("normal.k_n_per_m = -1")
+        );
     }
 
     #[test]

@@ -33,6 +33,9 @@ pub struct LoopArgs {
     /// Loop options.
     #[command(flatten)]
     pub rt: RtArgs,
+    /// What is rendered before the first model.
+    #[command(flatten)]
+    pub prior: PriorArgs,
     /// Recording and live view.
     #[command(flatten)]
     pub record: RecordArgs,
@@ -47,6 +50,34 @@ pub struct RtArgs {
     /// Run the loop thread(s) under SCHED_FIFO at this priority (1-99; needs CAP_SYS_NICE).
     #[arg(long, value_name = "PRIO", value_parser = rt::thread::parse_priority)]
     pub realtime_priority: Option<u8>,
+}
+
+/// What the operator renders from the first tick of contact until the telerobot's first model
+/// (`operator run`, the demo and the soak).
+#[derive(Clone, Debug, Args)]
+pub struct PriorArgs {
+    /// What to render from the first tick of contact until the telerobot's first model: generic
+    /// (the centre of the soft-object class), none (free space), or K,B (the normal's stiffness
+    /// in N/m and damping in N·s/m; the tangents keep the generic object).
+    #[arg(
+        long,
+        value_name = "PRIOR",
+        default_value = "generic",
+        allow_hyphen_values = true
+    )]
+    pub prior: String,
+}
+
+impl PriorArgs {
+    /// The operator node's settings with this prior; `--prior` checked.
+    pub fn node_config(&self) -> anyhow::Result<node::operator::OperatorConfig> {
+        let prior = mmt::model::prior::parse(&self.prior)
+            .map_err(|e| anyhow::anyhow!("--prior {}: {e}", self.prior))?;
+        Ok(node::operator::OperatorConfig {
+            prior,
+            ..node::operator::OperatorConfig::default()
+        })
+    }
 }
 
 /// Why the loop options are refused.
@@ -104,7 +135,7 @@ pub(super) fn run_cmd(
         periodic,
         realtime_priority: args.rt.realtime_priority,
         first_session_timeout: None,
-        node: node::operator::OperatorConfig::default(),
+        node: args.prior.node_config()?,
         experiment: "networked".to_owned(),
         known: None,
         record: recorder.as_ref().map(Recorder::sink),

@@ -303,3 +303,19 @@ fn a_negative_number_is_a_value_in_both_forms() {
         );
     }
 }
+
+/// Issue 13: `--prior` is checked before anything is printed or opened, and names what it wants.
+#[test]
+fn a_bad_prior_is_refused_before_anything_is_printed() {
+    for bad in ["stiff", "5,x", "-1,20"] {
+        let args = run_args(&["--prior", bad]);
+        let mut printed = Vec::new();
+        let e = run(&args, Shutdown::new(), &mut printed)
+            .unwrap_err()
+            .to_string();
+        assert!(printed.is_empty(), "{bad}: printed before the check");
+        assert!(e.starts_with(&format!("--prior {bad}: ")), "{e}");
+    }
+    let args = run_args(&["--prior", "none"]);
+    assert_eq!(args.run.prior.node_config().unwrap().prior, None);
+}
