@@ -390,6 +390,19 @@ impl TelerobotNode {
         self.frame_id = frame_id;
     }
 
+    /// Takes over, for a new session on the same robot, what `previous` knew of the geometry:
+    /// its proxy (where the tool is relative to the cloud) and its cloud; everything estimated
+    /// stays fresh. A proxy started at the tool cannot tell the inside of a surface from the
+    /// outside: a tool left resting on the object or pressed into it gave the next session's
+    /// proxy the wrong side, and that whole session felt contact in free space and none while
+    /// pressing. `previous`'s proxy followed the tool there from free space. Swaps: nothing
+    /// allocates.
+    pub fn take_over_geometry(&mut self, previous: &mut TelerobotNode) {
+        std::mem::swap(&mut self.proxy, &mut previous.proxy);
+        std::mem::swap(&mut self.cloud, &mut previous.cloud);
+        self.frame_id = previous.frame_id;
+    }
+
     /// Counts a camera frame that could not be indexed.
     pub fn count_rejected_cloud(&mut self) {
         self.stats.rejected_clouds += 1;

@@ -291,3 +291,70 @@ fn commands_with_an_implausible_playout_time_are_refused() {
     node.on_command(command(5 * MS, 0.05, 5 * MS + ahead));
     assert_eq!(node.stats().commands, 3);
 }
+
+/// A plane of points at z = 0, 1 mm apart over ±40 mm.
+fn plane_cloud() -> std::sync::Arc<mmt::contact::CloudIndex> {
+    let points = (-40..=40)
+        .flat_map(|i| (-40..=40).map(move |j| [i as f32 * 1e-3, j as f32 * 1e-3, 0.0]))
+        .collect();
+    let frame = mmt::cloud::CloudFrame::new(points, 0, mmt::cloud::Pose::IDENTITY).unwrap();
+    std::sync::Arc::new(mmt::contact::CloudIndex::build(&frame).unwrap())
+}
+
+/// Steps `node` with the tool at each height of `z` (1 ms apart from `*t`); whether the node's
+/// last measurement said contact.
+fn contact_at(node: &mut TelerobotNode, t: &mut i64, z: &[f64]) -> bool {
+    let mut in_contact = None;
+    for &z in z {
+        *t += 1_000_000;
+        let sample = node::RobotSample {
+            position_m: [0.0, 0.0, z],
+            velocity_m_per_s: [0.0; 3],
+            force_on_tool_n: [0.0, 0.0, (-500.0 * z).max(0.0)],
+        };
+        for d in node.step(*t, *t, &sample) {
+            if let protocol::telerobot_to_operator::Datagram::Measurement(m) = d {
+                in_contact = Some(m.in_contact);
+            }
+        }
+    }
+    in_contact.unwrap()
+}
+
+/// The node of a new session takes over the proxy of the last: the tool left pressed 3 mm into
+/// the object, a proxy started there sits 3 mm under the points and takes the inside for the
+/// outside (before the take-over, the session after a hostile one felt contact in free space
+/// and none while pressing, and its estimators never converged: `tests/tests/safety.rs`).
+#[test]
+fn a_new_sessions_node_keeps_the_side_of_the_surface_the_tool_came_from() {
+    let settings = Scene::exp1().telerobot_settings();
+    let cloud = plane_cloud();
+    let mut t = 0;
+    let mut first = TelerobotNode::new(settings.clone(), [0.0, 0.0, 0.01]).unwrap();
+    first.set_cloud(std::sync::Arc::clone(&cloud), 1);
+    assert!(!contact_at(&mut first, &mut t, &[0.01; 10]));
+    let descent: Vec<f64> = (0..=130).map(|k| 0.01 - 1e-4 * f64::from(k)).collect();
+    assert!(contact_at(&mut first, &mut t, &descent), "pressed 3 mm in");
+    let pressed = [-0.003; 20];
+    let lifted = [0.005; 50];
+    // Started where the tool rests, without the take-over: the wrong side.
+    let mut naive = TelerobotNode::new(settings.clone(), [0.0, 0.0, -0.003]).unwrap();
+    naive.set_cloud(std::sync::Arc::clone(&cloud), 1);
+    let naive_sees = (
+        contact_at(&mut naive, &mut t, &pressed),
+        contact_at(&mut naive, &mut t, &lifted),
+    );
+    assert_eq!(
+        naive_sees,
+        (false, true),
+        "the ambiguity this test is about"
+    );
+    // With it: contact while pressed, none lifted, contact again pressed, as a fresh daemon's.
+    let mut next = TelerobotNode::new(settings, [0.0, 0.0, -0.003]).unwrap();
+    next.take_over_geometry(&mut first);
+    assert!(contact_at(&mut next, &mut t, &pressed));
+    assert!(!contact_at(&mut next, &mut t, &lifted));
+    let again: Vec<f64> = (0..=80).map(|k| 0.005 - 1e-4 * f64::from(k)).collect();
+    assert!(contact_at(&mut next, &mut t, &again));
+    assert_eq!(next.stats().contact_onsets, 2);
+}

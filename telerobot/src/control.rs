@@ -281,7 +281,10 @@ impl ControlLoop {
                 }
             }
         };
-        let old = std::mem::replace(&mut self.node, fresh);
+        let mut old = std::mem::replace(&mut self.node, fresh);
+        // The robot did not move between the sessions: the proxy that followed it still knows
+        // which side of the surface it is on; one started where it rests may not.
+        self.node.take_over_geometry(&mut old);
         self.spares.retired.push(old);
     }
 }

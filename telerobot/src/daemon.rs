@@ -336,7 +336,6 @@ impl Telerobot {
             shared: Arc::clone(&shared),
             link: link.clone(),
             timing: Arc::clone(&timing),
-            spare_at: None,
             command_latency,
             latencies: rt::Histogram::new(),
             record: config.record.clone().zip(records).map(Forward::new),
@@ -487,8 +486,6 @@ struct Keeper {
     shared: Arc<Housekeeping>,
     link: TelerobotLink,
     timing: Arc<rt::LoopTiming>,
-    /// Where the waiting spare was built.
-    spare_at: Option<[f64; 3]>,
     command_latency: Arc<Mailbox<i64>>,
     /// Command latencies \[ns\] for the summary: a histogram (0.1 % quantiles, fixed size),
     /// so that a daemon left running keeps flat memory (a list grew by 29 MB an hour).
@@ -533,7 +530,7 @@ impl Keeper {
                 self.log_session_end(&last);
             }
             connected = now_connected;
-            self.keep_spare(&last, now_connected);
+            self.keep_spare(&last);
             if let Some(f) = &mut self.record {
                 f.round(&self.link);
             }
@@ -551,22 +548,15 @@ impl Keeper {
         }
     }
 
-    /// Keeps a spare node at the robot's position. While an operator is connected the robot
-    /// moves, and the spare waits for the session to end (it is rebuilt where the robot then
-    /// holds still).
-    fn keep_spare(&mut self, last: &LoopSnapshot, connected: bool) {
-        let moved = self.spare_at.is_none_or(|at| {
-            let d: f64 = (0..3).map(|i| (at[i] - last.tool_m[i]).powi(2)).sum();
-            d.sqrt() > 1e-4
-        });
-        let missing = self.spares.spare.is_empty();
-        if !(missing || (moved && !connected)) {
+    /// Keeps a spare node ready for the next session. Where it is built does not matter: the
+    /// loop gives it the last node's proxy and cloud ([`TelerobotNode::take_over_geometry`]).
+    fn keep_spare(&mut self, last: &LoopSnapshot) {
+        if !self.spares.spare.is_empty() {
             return;
         }
         match TelerobotNode::new(self.settings.clone(), last.tool_m) {
             Ok(node) => {
                 self.spares.spare.push(Box::new(node));
-                self.spare_at = Some(last.tool_m);
             }
             Err(e) => tracing::error!("cannot build a spare telerobot node: {e}"),
         }
