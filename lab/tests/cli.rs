@@ -58,7 +58,7 @@ fn a_range_error_names_the_flag() {
         assert_eq!(out.status.code(), Some(1), "{stderr}");
         assert_eq!(
             stderr.trim(),
-            "mmt: --delay-ms -5: expected in [0, 2000] ms"
+            "mmt: --delay-ms -5: expected in [0, 5000] ms"
         );
     }
 }

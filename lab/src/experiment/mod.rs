@@ -147,8 +147,8 @@ impl ExperimentConfig {
         field(
             "delay_ms",
             self.delay_ms,
-            self.delay_ms.is_finite() && (0.0..=2000.0).contains(&self.delay_ms),
-            "in [0, 2000] ms",
+            self.delay_ms.is_finite() && (0.0..=5000.0).contains(&self.delay_ms),
+            "in [0, 5000] ms",
         )?;
         field(
             "jitter_ms",
