@@ -325,22 +325,10 @@ fn error_over_time(s: &Series) -> Vec<Window> {
     let per_window = (1.0 / dt).round() as usize;
     (0..s.len())
         .step_by(per_window)
-        .map(|start| {
-            let end = (start + per_window).min(s.len());
-            let (mut e2, mut m2, mut n) = (0.0, 0.0, 0);
-            for i in start..end {
-                if let Some(m) = s.measured[i] {
-                    e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
-                    m2 += vec3::norm2(m);
-                    n += 1;
-                }
-            }
-            let rms_m = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };
-            Window {
-                t_s: start as f64 * dt,
-                rms_error_pct: (rms_m > 0.05).then(|| 100.0 * (e2 / m2).sqrt()),
-                outage: false,
-            }
+        .map(|start| Window {
+            t_s: start as f64 * dt,
+            rms_error_pct: onset::window_pct(s, start, (start + per_window).min(s.len())),
+            outage: false,
         })
         .collect()
 }

@@ -65,7 +65,7 @@ pub fn recontact_error_pct(s: &Series) -> Option<f64> {
 }
 
 /// The error in ticks `start..end` \[%\]; `None` when the measured force's RMS is 0.05 N or less.
-fn window_pct(s: &Series, start: usize, end: usize) -> Option<f64> {
+pub(crate) fn window_pct(s: &Series, start: usize, end: usize) -> Option<f64> {
     let (e2, m2) = sums(s, start, end);
     let n = (start..end).filter(|&i| s.measured[i].is_some()).count();
     let rms = if n > 0 { (m2 / n as f64).sqrt() } else { 0.0 };

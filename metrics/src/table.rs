@@ -131,11 +131,7 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
             "normal {:.0} N/m, {:.1} N·s/m ({})",
             p.normal.k_n_per_m,
             p.normal.b_ns_per_m,
-            match p.source {
-                mmt::model::prior::PriorSource::Generic => "generic",
-                mmt::model::prior::PriorSource::Given => "given",
-                mmt::model::prior::PriorSource::Truth => "the scene's truth",
-            }
+            p.source.label()
         ),
         None => "none: free space until the first model".to_owned(),
     };

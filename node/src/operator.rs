@@ -172,7 +172,10 @@ impl OperatorNode {
                 let mut renderer = KelvinVoigtRenderer::new(r)?;
                 if let Some(prior) = config.prior {
                     prior.validate()?;
-                    renderer.set_prior(prior.normal);
+                    let normal = Params::KelvinVoigt(prior.normal);
+                    let gated = gate_physical(Structure::KelvinVoigt, &normal)
+                        .map_err(NodeError::PriorRejected)?;
+                    renderer.set_prior(&gated);
                 }
                 Some(renderer)
             }
@@ -203,7 +206,7 @@ impl OperatorNode {
             history: History::new(),
             prior_tangential,
             prior_axes,
-            handover_ticks: (r.handover_s * r.rate_hz).round() as u32,
+            handover_ticks: r.handover_ticks(),
             episode_onset_ns: None,
             model_id: None,
             rendering: false,

@@ -71,6 +71,17 @@ pub enum PriorSource {
     Truth,
 }
 
+impl PriorSource {
+    /// How reports name it.
+    pub fn label(self) -> &'static str {
+        match self {
+            PriorSource::Generic => "generic",
+            PriorSource::Given => "given",
+            PriorSource::Truth => "the scene's truth",
+        }
+    }
+}
+
 /// The models to render from the first tick of contact until the telerobot's first.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Prior {

@@ -30,7 +30,7 @@ impl KelvinVoigtRenderer {
         config.validate()?;
         Ok(KelvinVoigtRenderer {
             alpha: config.smoothing_alpha(),
-            handover_ticks: (config.handover_s * config.rate_hz).round() as u32,
+            handover_ticks: config.handover_ticks(),
             config,
             target: None,
             current: None,
@@ -43,15 +43,16 @@ impl KelvinVoigtRenderer {
 
     /// Renders `prior` until the first parameter set arrives, then blends from it to that set
     /// linearly over the configured hand-over time (every blend is a convex combination of two
-    /// passive sets, hence passive). Ignored once a set has arrived. The caller checks the prior
-    /// ([`crate::model::prior::Prior::validate`]); a non-finite or negative one is ignored.
-    pub fn set_prior(&mut self, prior: KelvinVoigt) {
-        let valid = prior.k_n_per_m.is_finite()
-            && prior.k_n_per_m >= 0.0
-            && prior.b_ns_per_m.is_finite()
-            && prior.b_ns_per_m >= 0.0;
-        if valid && self.target.is_none() {
-            self.prior = Some(prior);
+    /// passive sets, hence passive). The prior passes the same gates as any set (the caller gates
+    /// it, [`crate::model::gates::gate_physical`]). `false` (ignored) if not Kelvin–Voigt or
+    /// once a set has arrived.
+    pub fn set_prior(&mut self, prior: &Gated) -> bool {
+        match prior.kelvin_voigt() {
+            Some(kv) if self.target.is_none() => {
+                self.prior = Some(kv);
+                true
+            }
+            _ => false,
         }
     }
 

@@ -124,6 +124,11 @@ impl RendererConfig {
         1.0 / self.rate_hz
     }
 
+    /// The hand-over from a prior to the first model [ticks] (`handover_s` at `rate_hz`).
+    pub fn handover_ticks(&self) -> u32 {
+        (self.handover_s * self.rate_hz).round() as u32
+    }
+
     /// Smoothing factor per tick, `1 − exp(−h/τ)`.
     fn smoothing_alpha(&self) -> f64 {
         if self.smoothing_tau_s > 0.0 {

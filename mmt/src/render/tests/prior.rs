@@ -18,10 +18,9 @@ fn kv(k: f64, b: f64) -> Gated {
     .unwrap()
 }
 
-const PRIOR: KelvinVoigt = KelvinVoigt {
-    k_n_per_m: 800.0,
-    b_ns_per_m: 20.0,
-};
+fn prior() -> Gated {
+    kv(800.0, 20.0)
+}
 
 /// Immediate smoothing, so that the blend's every tick has an exact answer.
 fn config(handover_s: f64) -> RendererConfig {
@@ -37,7 +36,7 @@ fn the_prior_renders_from_the_first_tick_of_contact_and_nothing_outside_it() {
     let mut without = KelvinVoigtRenderer::new(config(0.4)).unwrap();
     assert_eq!(without.step(0.002, 0.01, true), 0.0);
     let mut r = KelvinVoigtRenderer::new(config(0.4)).unwrap();
-    r.set_prior(PRIOR);
+    assert!(r.set_prior(&prior()));
     assert_eq!(r.step(0.002, 0.01, false), 0.0);
     assert_eq!(r.step(-0.001, 0.0, true), 0.0);
     // 800·0.002 + 20·0.01 = 1.8 N on the first tick in contact.
@@ -51,7 +50,7 @@ fn the_prior_renders_from_the_first_tick_of_contact_and_nothing_outside_it() {
 #[test]
 fn the_first_model_takes_over_in_a_linear_blend_of_the_configured_length() {
     let mut r = KelvinVoigtRenderer::new(config(0.4)).unwrap();
-    r.set_prior(PRIOR);
+    assert!(r.set_prior(&prior()));
     r.step(0.001, 0.0, true);
     assert!(r.set_target(&kv(300.0, 60.0)));
     // 400 ticks at 1 kHz: tick j renders k = 800 + (j/400)(300 − 800), b = 20 + (j/400)·40.
@@ -74,26 +73,27 @@ fn the_first_model_takes_over_in_a_linear_blend_of_the_configured_length() {
 #[test]
 fn a_zero_handover_switches_at_once_and_a_late_prior_is_ignored() {
     let mut r = KelvinVoigtRenderer::new(config(0.0)).unwrap();
-    r.set_prior(PRIOR);
+    assert!(r.set_prior(&prior()));
     r.set_target(&kv(300.0, 60.0));
     assert!((r.step(0.002, 0.01, true) - 1.2).abs() < 1e-12);
-    r.set_prior(KelvinVoigt {
-        k_n_per_m: 5000.0,
-        b_ns_per_m: 0.0,
-    });
+    assert!(!r.set_prior(&kv(5000.0, 0.0)));
     assert!((r.step(0.002, 0.01, true) - 1.2).abs() < 1e-12);
-    // A non-physical prior is never installed.
+    // A non-physical prior never passes the gates a prior is installed through.
     let mut bad = KelvinVoigtRenderer::new(config(0.4)).unwrap();
-    for prior in [
+    for (k, b) in [
         (f64::NAN, 1.0),
         (-1.0, 1.0),
         (1.0, f64::INFINITY),
         (1.0, -2.0),
     ] {
-        bad.set_prior(KelvinVoigt {
-            k_n_per_m: prior.0,
-            b_ns_per_m: prior.1,
+        let params = Params::KelvinVoigt(KelvinVoigt {
+            k_n_per_m: k,
+            b_ns_per_m: b,
         });
+        assert!(
+            gate_physical(Structure::KelvinVoigt, &params).is_err(),
+            "{k} {b}"
+        );
     }
     assert_eq!(bad.step(0.002, 0.01, true), 0.0);
     let e = KelvinVoigtRenderer::new(RendererConfig {
@@ -111,10 +111,7 @@ fn colgate_bounds_the_prior_like_any_model() {
         ..config(0.4)
     })
     .unwrap();
-    r.set_prior(KelvinVoigt {
-        k_n_per_m: 5000.0,
-        b_ns_per_m: 2.0,
-    });
+    assert!(r.set_prior(&kv(5000.0, 2.0)));
     // k ≤ 2(b_dev − b)/T = 4000 N/m.
     assert!((r.step(0.001, 0.0, true) - 4.0).abs() < 1e-12);
     assert_eq!(r.adjustments().stiffness_clipped, Some((5000.0, 4000.0)));
