@@ -9,7 +9,8 @@
 //! - [`udp_junk`] and [`shim`]: raw UDP junk, and the netem shim in front of an address;
 //! - [`peers`]: hand-made peers for what a correct daemon never sends (another version, garbage);
 //! - [`net`]: the two daemons' network tasks alone, with stand-in loops;
-//! - [`daemons`]: the whole daemons, started through the functions the binaries run.
+//! - [`daemons`]: the whole daemons, started through the functions the binaries run;
+//! - [`process`]: the binaries as processes (Ctrl-C, a bounded wait for the exit).
 //!
 //! What it is not: no test of its own, and nothing a daemon links.
 
@@ -18,6 +19,7 @@
 pub mod daemons;
 pub mod net;
 pub mod peers;
+pub mod process;
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::{Mutex, MutexGuard, PoisonError};
