@@ -159,7 +159,9 @@ pub struct Recording {
     pub reconnect_nodes: u64,
     /// Haptic-loop periods (tick start to the next tick's start) while the recorder recorded
     /// (`[0]`) and while it was paused (`[1]`): what recording and the live view cost the loop,
-    /// measured in one run (`demo --record-ab-s`). Empty without a recorder.
+    /// measured in one run (`demo --record-ab-s`). Counted from the first pause or resume on, so
+    /// that the loop's start-up (connecting, first cloud, first model) weighs on neither half.
+    /// Empty without a recorder, or if it was never paused.
     pub periods: [rt::Histogram; 2],
 }
 
@@ -204,6 +206,7 @@ pub fn spawn(
                     batch: Vec::new(),
                     last: None,
                     link_due: std::time::Instant::now(),
+                    ab: AbWindow::default(),
                 }),
                 last_position: [0.0; 3],
                 previous_tick: None,
@@ -308,6 +311,25 @@ struct Forward {
     /// The previous tick's safety flags and device fault count.
     last: Option<(SafetyFlags, u64)>,
     link_due: std::time::Instant,
+    ab: AbWindow,
+}
+
+/// When the A/B halves of `--record-ab-s` are counted: from the first pause or resume on.
+#[derive(Debug, Default)]
+struct AbWindow {
+    /// The sink's pause state at the last round.
+    paused: Option<bool>,
+    /// It has changed since the first round.
+    toggled: bool,
+}
+
+impl AbWindow {
+    /// Notes the sink's pause state at a round; true once it has been toggled.
+    fn counting(&mut self, paused: bool) -> bool {
+        self.toggled |= self.paused.is_some_and(|p| p != paused);
+        self.paused = Some(paused);
+        self.toggled
+    }
 }
 
 impl Helper {
@@ -316,10 +338,14 @@ impl Helper {
         self.sessions();
         while self.exchange.retired.take().is_some() {}
         let recording = self.record.as_ref().is_some_and(|f| !f.sink.is_paused());
+        let counting = self
+            .record
+            .as_mut()
+            .is_some_and(|f| f.ab.counting(!recording));
         while let Some(t) = self.exchange.ticks.take() {
             self.last_position = t.position_m;
             if let Some((index, started_ns)) = self.previous_tick
-                && self.record.is_some()
+                && counting
                 && t.index == index + 1
             {
                 self.recording.periods[usize::from(!recording)].record(t.started_ns - started_ns);
@@ -558,6 +584,21 @@ pub use tap::{Tap, Tapped};
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
+    #[test]
+    fn the_ab_halves_are_counted_from_the_first_toggle_on() {
+        let mut ab = super::AbWindow::default();
+        // The start-up, recording: in neither half.
+        assert!(!ab.counting(false));
+        assert!(!ab.counting(false));
+        // Paused, then recording again: counted from the first change on, whatever follows.
+        assert!(ab.counting(true));
+        assert!(ab.counting(true));
+        assert!(ab.counting(false));
+        // Never toggled (a recorder without --record-ab-s): never counted.
+        let mut never = super::AbWindow::default();
+        assert!((0..10).all(|_| !never.counting(false)));
+    }
+
     use super::*;
 
     /// A square grid of `n × n` points of spacing `s` [m] on `z = 0`.
