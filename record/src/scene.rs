@@ -1,5 +1,7 @@
 //! The 3-D scene at display rate, from the latest recorded state: the table and the object (when
-//! the scene is known; the object slides as the simulated bridge says), the proxy sphere coloured
+//! the scene is known; the object slides as the robot bridge says, and is drawn under the tool
+//! where each contact begins: the simulated object has no edges, so the drawn box is the part of
+//! it being touched, not its outline), the proxy sphere coloured
 //! by the contact state (green free, orange contact, red entrenched), the device's point, the
 //! force arrow and the surface frame's axes (`foxglove.SceneUpdate` on `/scene`, and
 //! `foxglove.FrameTransform` `world` → `surface` on `/tf`).
@@ -40,6 +42,11 @@ pub struct SceneState {
     contact: Option<ContactStateRec>,
     frame: Option<(Vec3, FrameRec)>,
     slide: [f64; 2],
+    /// Where the drawn object's centre is at zero slide, along the tangents from the surface
+    /// point \[m\]: set under the tool when a contact begins.
+    anchor: [f64; 2],
+    /// The telerobot's contact flag at its last tick.
+    touching: bool,
     next_ns: Option<i64>,
 }
 
@@ -79,6 +86,10 @@ impl SceneState {
             }
             Message::TelerobotTick(t) => {
                 self.slide = t.object_slide_m;
+                if t.in_contact && !self.touching {
+                    self.anchor_under(t.position_m);
+                }
+                self.touching = t.in_contact;
                 if !self.has_operator {
                     self.point = Some(t.position_m);
                     self.force = t.force_on_tool_n;
@@ -100,6 +111,17 @@ impl SceneState {
         }
     }
 
+    /// Puts the drawn object's centre under `tool_m` (along the tangents), at the slide now.
+    fn anchor_under(&mut self, tool_m: Vec3) {
+        if let Some((point, frame)) = &self.surface {
+            let d = vec3::sub(tool_m, *point);
+            self.anchor = [
+                vec3::dot(d, frame.tangent1) - self.slide[0],
+                vec3::dot(d, frame.tangent2) - self.slide[1],
+            ];
+        }
+    }
+
     /// The table and the object on it, where the surface was last seen (none before).
     fn table_and_object(&self, entity: &dyn Fn(&str) -> SceneEntity) -> Vec<SceneEntity> {
         let Some((point, frame)) = self.surface else {
@@ -116,7 +138,14 @@ impl SceneState {
             )
         };
         let [w, d, h] = OBJECT_SIZE_M;
-        let object_centre = vec3::add(point, along([self.slide[0], self.slide[1], -h / 2.0]));
+        let object_centre = vec3::add(
+            point,
+            along([
+                self.anchor[0] + self.slide[0],
+                self.anchor[1] + self.slide[1],
+                -h / 2.0,
+            ]),
+        );
         let table_centre = vec3::add(point, along([0.0, 0.0, -h - TABLE_SIZE_M[2] / 2.0]));
         let cube = |centre: Vec3, size: [f64; 3], color: Color| CubePrimitive {
             pose: Some(pose(centre, rotation)),
@@ -338,6 +367,58 @@ mod tests {
 
     fn close(a: Vec3, b: Vec3) -> bool {
         (0..3).all(|i| (a[i] - b[i]).abs() < 1e-12)
+    }
+
+    /// Before: the box was drawn at the surface point plus the slide since the start; the
+    /// simulated object has no edges and each contact begins wherever the tool comes down, so
+    /// after a few contacts the demo drew the tool 0.1 m off the box it was pushing.
+    #[test]
+    fn the_object_is_drawn_under_the_tool_where_a_contact_begins_and_slides_from_there() {
+        let mut state = SceneState {
+            surface: Some((
+                [0.0, 0.0, 0.0],
+                FrameRec {
+                    normal: [0.0, 0.0, 1.0],
+                    tangent1: [1.0, 0.0, 0.0],
+                    tangent2: [0.0, 1.0, 0.0],
+                },
+            )),
+            ..SceneState::default()
+        };
+        let mut tick = |position_m: Vec3, slide: [f64; 2], in_contact: bool| {
+            let t = crate::schema::TelerobotTick {
+                position_m,
+                object_slide_m: slide,
+                in_contact,
+                ..Default::default()
+            };
+            state.update(0, &Message::TelerobotTick(Box::new(t)));
+            let entities = state.table_and_object(&|id: &str| SceneEntity {
+                id: id.to_owned(),
+                ..SceneEntity::default()
+            });
+            let object = entities.iter().find(|e| e.id == "object").unwrap();
+            let p = object.cubes[0]
+                .pose
+                .as_ref()
+                .unwrap()
+                .position
+                .as_ref()
+                .unwrap();
+            [p.x, p.y, p.z]
+        };
+        // Free: the object where it slid to; a contact begins at y 0.05 with 0.1 m of slide.
+        let free = tick([0.0, 0.05, 0.01], [0.0, -0.1], false);
+        assert!(close(free, [0.0, -0.1, -0.025]), "{free:?}");
+        let onset = tick([0.0, 0.05, -0.001], [0.0, -0.1], true);
+        assert!(close(onset, [0.0, 0.05, -0.025]), "{onset:?}");
+        // It slides with the object, whatever the tool does within the contact.
+        let pushed = tick([0.03, 0.07, -0.002], [0.01, -0.08], true);
+        assert!(close(pushed, [0.01, 0.07, -0.025]), "{pushed:?}");
+        // Lifted and put down elsewhere: under the tool again.
+        tick([0.03, 0.07, 0.01], [0.01, -0.08], false);
+        let again = tick([-0.02, 0.0, -0.001], [0.01, -0.08], true);
+        assert!(close(again, [-0.02, 0.0, -0.025]), "{again:?}");
     }
 
     #[test]
