@@ -5,6 +5,7 @@
 //! A file cut short (a killed run: no summary, maybe half a chunk at the end) is read up to its
 //! last complete chunk; [`Recording::truncated`] says where and why reading stopped.
 
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use mcap::read::Options;
@@ -182,11 +183,21 @@ impl Recording {
 /// counted in [`Recording::skipped`].
 pub fn read(path: &Path, topics: &[&str]) -> Result<Recording, ReadError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|error| ReadError::Io {
+    let io = |error| ReadError::Io {
         path: name.clone(),
         error,
-    })?;
-    let mut rec = read_bytes(&bytes, &name, topics)?;
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    // The header and its metadata come first: a prefix is enough to say what the file is.
+    let mut prefix = Vec::new();
+    std::io::Read::by_ref(&mut file)
+        .take(HEADER_PREFIX)
+        .read_to_end(&mut prefix)
+        .map_err(io)?;
+    let header = header(&prefix, &name)?;
+    let source = std::io::BufReader::new(std::io::Read::chain(prefix.as_slice(), file));
+    let mut rec = read_messages(Messages::new(source, len), header, &name, topics)?;
     rec.path = path.to_owned();
     Ok(rec)
 }
@@ -195,12 +206,30 @@ pub fn read(path: &Path, topics: &[&str]) -> Result<Recording, ReadError> {
 /// becomes [`Recording::path`]. Whatever the bytes, an error or a recording, never a panic.
 pub fn read_bytes(bytes: &[u8], name: &str, topics: &[&str]) -> Result<Recording, ReadError> {
     let header = header(bytes, name)?;
+    read_messages(
+        Messages::new(bytes, bytes.len() as u64),
+        header,
+        name,
+        topics,
+    )
+}
+
+/// Bytes read first to find the header metadata \[bytes\] (it is the file's second record).
+const HEADER_PREFIX: u64 = 1 << 20;
+
+/// The messages of a file whose header is `header`, on `topics` (all if empty), into lists.
+fn read_messages(
+    messages: Messages<impl std::io::Read>,
+    header: Header,
+    name: &str,
+    topics: &[&str],
+) -> Result<Recording, ReadError> {
     let mut rec = Recording {
         path: PathBuf::from(name),
         header: Some(header),
         ..Recording::default()
     };
-    for (index, message) in Messages::new(bytes).enumerate() {
+    for (index, message) in messages.enumerate() {
         let message = match message {
             Ok(m) => m,
             Err(e) => {

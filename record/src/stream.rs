@@ -8,6 +8,7 @@
 //! reader drives mcap's own sans-I/O reader with the limit set instead.
 
 use std::collections::HashMap;
+use std::io::Read;
 
 use mcap::records::Record;
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
@@ -24,30 +25,47 @@ pub(crate) struct StreamMessage {
     pub data: Vec<u8>,
 }
 
-/// The messages of `bytes` (an MCAP file, with or without its end magic).
-pub(crate) struct Messages<'a> {
-    rest: &'a [u8],
+/// The messages of an MCAP file (with or without its end magic) read from `source` as they are
+/// needed: a file is streamed, never held whole.
+pub(crate) struct Messages<R> {
+    source: R,
     reader: LinearReader,
     topics: HashMap<u16, String>,
     done: bool,
 }
 
-impl<'a> Messages<'a> {
-    pub(crate) fn new(bytes: &'a [u8]) -> Messages<'a> {
+impl<R: Read> Messages<R> {
+    /// The messages of `source`, which holds `len` bytes (the record-length limit grows with it).
+    pub(crate) fn new(source: R, len: u64) -> Messages<R> {
+        let len = usize::try_from(len).unwrap_or(usize::MAX);
         Messages {
-            rest: bytes,
+            source,
             reader: LinearReader::new_with_options(
                 LinearReaderOptions::default()
-                    .with_record_length_limit(RECORD_LIMIT.max(bytes.len()))
+                    .with_record_length_limit(RECORD_LIMIT.max(len))
                     .with_skip_end_magic(true),
             ),
             topics: HashMap::new(),
             done: false,
         }
     }
+
+    /// Reads up to `need` bytes into the reader; 0 at the end of the source.
+    fn fill(&mut self, need: usize) -> std::io::Result<usize> {
+        let buf = self.reader.insert(need);
+        let n = loop {
+            match self.source.read(buf) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                other => break other,
+            }
+        };
+        // Whatever happened, the reader is told what arrived (nothing on an error).
+        self.reader.notify_read(*n.as_ref().unwrap_or(&0));
+        n
+    }
 }
 
-impl Iterator for Messages<'_> {
+impl<R: Read> Iterator for Messages<R> {
     /// A message, or why reading stopped.
     type Item = Result<StreamMessage, String>;
 
@@ -58,10 +76,10 @@ impl Iterator for Messages<'_> {
         while let Some(event) = self.reader.next_event() {
             let (opcode, data) = match event {
                 Ok(LinearReadEvent::ReadRequest(need)) => {
-                    let n = need.min(self.rest.len());
-                    self.reader.insert(n).copy_from_slice(&self.rest[..n]);
-                    self.reader.notify_read(n);
-                    self.rest = &self.rest[n..];
+                    if let Err(e) = self.fill(need) {
+                        self.done = true;
+                        return Some(Err(format!("cannot read on: {e}")));
+                    }
                     continue;
                 }
                 Ok(LinearReadEvent::Record { opcode, data }) => (opcode, data),

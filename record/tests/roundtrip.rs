@@ -209,6 +209,27 @@ fn a_truncated_file_is_read_up_to_its_last_complete_chunk() {
     }
 }
 
+/// Before: `read` loaded the whole file and then parsed it (167 MB of memory for a 107 MB
+/// recording); it now reads a prefix for the header and streams the rest. A file many times
+/// that prefix reads exactly as its bytes do, whole and cut short.
+#[test]
+fn a_file_is_streamed_and_reads_as_its_bytes_do() {
+    let path = temp("streamed.mcap");
+    record(&path, 40_000);
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(bytes.len() > 3 << 20, "only {} bytes", bytes.len());
+    for cut in [bytes.len(), bytes.len() * 2 / 3] {
+        let file = temp("streamed-cut.mcap");
+        std::fs::write(&file, &bytes[..cut]).unwrap();
+        let streamed = read(&file, &[]).unwrap();
+        let held = record::read_bytes(&bytes[..cut], "held", &[]).unwrap();
+        assert_eq!(streamed.messages, held.messages, "cut at {cut}");
+        assert!(streamed.messages > 40_000, "{}", streamed.messages);
+        assert_eq!(streamed.operator_ticks, held.operator_ticks, "cut at {cut}");
+        assert_eq!(streamed.truncated.is_some(), cut < bytes.len());
+    }
+}
+
 /// The child of [`a_killed_recorder_leaves_a_readable_file`]: records until it is killed.
 #[test]
 #[ignore = "run by a_killed_recorder_leaves_a_readable_file"]
