@@ -22,6 +22,7 @@
 pub mod cli;
 mod encode;
 mod file;
+mod lenient;
 pub mod live;
 pub mod read;
 pub mod replay;

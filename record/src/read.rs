@@ -316,7 +316,7 @@ fn parse_header(
 /// Decodes one message into its list.
 fn take(rec: &mut Recording, topic_name: &str, data: &[u8], log_time: u64) -> Result<(), String> {
     fn json<T: serde::de::DeserializeOwned>(data: &[u8]) -> Result<T, String> {
-        serde_json::from_slice(data).map_err(|e| e.to_string())
+        crate::lenient::from_slice(data)
     }
     use Side::{Operator as O, Telerobot as T};
     match topic_name {

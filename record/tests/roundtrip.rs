@@ -89,6 +89,42 @@ fn a_recording_read_back_gives_the_same_samples() {
     assert_eq!(rec.events.len() as u64, ticks.div_ceil(100));
 }
 
+/// Before: JSON has no NaN; a tick holding one (a faulty device's reading, which the safety
+/// layer exists to catch) was written as `null` and refused on reading, and the recording with
+/// it. It reads back, the NaN (or infinity: its sign is lost) as NaN, and the ticks after it.
+#[test]
+fn a_tick_holding_a_nan_reads_back_with_the_ticks_after_it() {
+    let path = temp("nan.mcap");
+    let recorder = Recorder::start(RecorderConfig {
+        mcap: Some(path.clone()),
+        live: None,
+        kind: Kind::Operator,
+        clock_origin_ns: 0,
+    })
+    .unwrap();
+    let mut batch = vec![record::Timed {
+        t_ns: 0,
+        message: Message::Run(Box::new(run_start(Side::Operator))),
+    }];
+    for k in 0..50 {
+        let mut tick = operator_tick(k);
+        if k == 10 {
+            tick.device_position_m = [f64::NAN, 0.0, f64::INFINITY];
+        }
+        batch.push(record::Timed {
+            t_ns: k as i64 * 1_000_000,
+            message: Message::OperatorTick(Box::new(tick)),
+        });
+    }
+    assert!(recorder.sink().send(batch));
+    recorder.finish().unwrap();
+    let rec = read(&path, &[]).unwrap();
+    assert_eq!(rec.operator_ticks.len(), 50, "{}", rec.describe());
+    let bad = &rec.operator_ticks[10];
+    assert!(bad.device_position_m[0].is_nan() && bad.device_position_m[2].is_nan());
+    assert_eq!(rec.operator_ticks[11], operator_tick(11));
+}
+
 /// The same file through the `mcap` crate alone: every JSON message parses as its schema's
 /// type, every channel has a schema, and the scene was drawn at display rate.
 #[test]
