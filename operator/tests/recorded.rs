@@ -102,9 +102,12 @@ fn ctrl_c_finalises_the_recording_and_the_replay_plays_it_back() {
         .fold(0.0, f64::max);
     assert!(moved > 0.01, "the script hardly moved: {moved} m");
 
-    // The recording drives a second session as its device.
+    // The recording drives a second session as its device, under the name a killed run leaves
+    // (it was taken for a CSV file by its extension).
     let second = dir.join("second.mcap");
-    let device = format!("replay:{}", first.display());
+    let partial = dir.join("killed.mcap.partial");
+    std::fs::copy(&first, &partial).unwrap();
+    let device = format!("replay:{}", partial.display());
     let output = operator(&dir, tr.local_addr(), &device, "3")
         .arg("--record")
         .arg(&second)

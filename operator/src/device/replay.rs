@@ -31,6 +31,8 @@ use mmt::vec3::{self, Vec3};
 pub const HEADER_POSITION: &str = "t_s,x,y,z";
 /// Header with velocity columns.
 pub const HEADER_FULL: &str = "t_s,x,y,z,vx,vy,vz";
+/// The first bytes of an MCAP file.
+const MCAP_MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 const NAMES: [&str; 7] = ["t_s", "x", "y", "z", "vx", "vy", "vz"];
 
 /// Why a replay file was refused. Lines and columns count from 1.
@@ -145,6 +147,21 @@ pub struct ReplayTrajectory {
 }
 
 impl ReplayTrajectory {
+    /// Reads and checks a replay file: a recording if it is named `.mcap` or starts as an MCAP
+    /// file does (the `FILE.mcap.partial` a killed run leaves), the CSV format otherwise.
+    pub fn open(path: &Path) -> Result<Self, ReplayError> {
+        let mut magic = [0u8; 8];
+        let is_mcap = path.extension().is_some_and(|e| e == "mcap")
+            || std::fs::File::open(path)
+                .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+                .is_ok_and(|()| magic == *MCAP_MAGIC);
+        if is_mcap {
+            Self::from_recording(path)
+        } else {
+            Self::load(path)
+        }
+    }
+
     /// Reads and checks a replay file.
     pub fn load(path: &Path) -> Result<Self, ReplayError> {
         let file = path.display().to_string();

@@ -108,14 +108,7 @@ pub fn open_device(
             options.managed,
         )?),
         DeviceSpec::Replay { path } => Box::new(ManagedDevice::new(
-            ScriptedBackend::new(
-                Box::new(if path.extension().is_some_and(|e| e == "mcap") {
-                    ReplayTrajectory::from_recording(path)?
-                } else {
-                    ReplayTrajectory::load(path)?
-                }),
-                "replay",
-            ),
+            ScriptedBackend::new(Box::new(ReplayTrajectory::open(path)?), "replay"),
             options.managed,
         )?),
         DeviceSpec::SpaceMouse => Box::new(ManagedDevice::new(
