@@ -33,7 +33,7 @@ fn recorded_run(
         clock_origin_ns: 0,
     })
     .unwrap();
-    let live = run_recorded(&config, &mut |_| {}, Some(recorder.sink())).unwrap();
+    let live = run_recorded(&config, &mut |_| {}, Some(recorder.sink()), None).unwrap();
     let report = recorder.finish().unwrap();
     assert_eq!(report.dropped, 0);
     live
@@ -97,4 +97,53 @@ fn recordings_of_the_wrong_kind_are_refused_saying_what_they_are() {
     std::fs::write(&not_mcap, "t_s,x,y,z\n0,0,0,0\n").unwrap();
     let e = report_file(&not_mcap).unwrap_err().to_string();
     assert!(e.contains(&not_mcap.display().to_string()), "{e}");
+}
+
+/// Before: `mmt experiment` had no Ctrl-C handling; an interrupted run with `--record` left
+/// only `FILE.mcap.partial`. It now stops at its next progress point, closes the recording as
+/// on any error (renamed into place, readable), writes no report and says where it stopped.
+#[test]
+fn ctrl_c_stops_an_experiment_and_finalises_its_recording() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let file = temp("interrupted.mcap");
+    let out = temp("interrupted-out");
+    let child = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", "exp3", "--seconds", "3600", "--record"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Recording, well into the run (the partial file has a chunk or more).
+    let started = Instant::now();
+    while std::fs::metadata(record::partial_path(&file)).map_or(0, |m| m.len()) < 2 << 20 {
+        assert!(started.elapsed() < Duration::from_secs(60), "no recording");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("interrupted at"), "{stderr}");
+    assert!(
+        stderr.contains("the recording up to then is in"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!record::partial_path(&file).exists(), "left partial");
+    let rec = record::read(&file, &[]).unwrap();
+    assert_eq!(rec.kind(), Some(record::Kind::Experiment));
+    assert_eq!(rec.truncated, None, "closed, not cut short");
+    assert!(rec.telerobot_ticks.len() > 1000, "{}", rec.describe());
+    assert!(
+        !out.join("report.json").exists(),
+        "a report of a run that did not end"
+    );
 }

@@ -1,6 +1,6 @@
 //! `mmt experiment`: the thesis's experiments in-process.
 
-use crate::experiment::{ExperimentConfig, Kind, run_recorded};
+use crate::experiment::{ExperimentConfig, ExperimentError, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
 use mmt::model::prior::{Prior, PriorSource};
@@ -120,6 +120,11 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         eprintln!("live view: open ws://{addr} in Foxglove or Lichtblick");
     }
     let sink = recorder.as_ref().map(record::Recorder::sink);
+    // Ctrl-C stops the run at its next progress point: an error, so the recording is closed
+    // (renamed into place, readable) as on any error, and nothing else is written.
+    let stop = rt::Shutdown::new();
+    stop.on_signals()
+        .map_err(|e| anyhow::anyhow!("cannot watch for Ctrl-C: {e}"))?;
     let (series, report) = run_recorded(
         &config,
         &mut |f| {
@@ -128,7 +133,14 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
             }
         },
         sink,
-    )?;
+        Some(&stop),
+    )
+    .map_err(|e| match (&e, &args.record.record) {
+        (ExperimentError::Interrupted { .. }, Some(path)) => {
+            anyhow::anyhow!("{e}; the recording up to then is in {}", path.display())
+        }
+        _ => e.into(),
+    })?;
     let recorded = recorder.map(record::Recorder::finish).transpose()?;
     let wall = started.elapsed().as_secs_f64();
     if let Some(bar) = &bar {

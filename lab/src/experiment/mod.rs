@@ -211,6 +211,14 @@ pub enum ExperimentError {
     /// The operator's settings from the scene's `Welcome`.
     #[error("operator settings: {0}")]
     Settings(String),
+    /// Stopped by Ctrl-C or SIGTERM before the end.
+    #[error("interrupted at {at_s:.1} s of {of_s:.1} s simulated")]
+    Interrupted {
+        /// Simulated time reached \[s\].
+        at_s: f64,
+        /// Simulated time asked for \[s\].
+        of_s: f64,
+    },
 }
 
 #[cfg(test)]

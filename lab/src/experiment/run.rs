@@ -34,14 +34,16 @@ pub fn run(
     config: &ExperimentConfig,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Series, ExperimentReport), ExperimentError> {
-    run_recorded(config, progress, None)
+    run_recorded(config, progress, None, None)
 }
 
-/// [`run`], handing everything to `record` too (`mmt experiment --record`/`--live`).
+/// [`run`], handing everything to `record` too (`mmt experiment --record`/`--live`), and
+/// stopping with [`ExperimentError::Interrupted`] once `stop` is triggered (Ctrl-C).
 pub fn run_recorded(
     config: &ExperimentConfig,
     progress: &mut dyn FnMut(f64),
     record: Option<RecordSink>,
+    stop: Option<&rt::Shutdown>,
 ) -> Result<(Series, ExperimentReport), ExperimentError> {
     config.validate()?;
     let mut harness = Harness::new(config)?;
@@ -67,6 +69,12 @@ pub fn run_recorded(
         harness.tick(k as i64 * harness.period_ns, &mut series)?;
         if k % report_every == 0 {
             progress(k as f64 / ticks as f64);
+            if stop.is_some_and(rt::Shutdown::is_triggered) {
+                return Err(ExperimentError::Interrupted {
+                    at_s: k as f64 * harness.period_ns as f64 * 1e-9,
+                    of_s: config.seconds,
+                });
+            }
         }
     }
     progress(1.0);
