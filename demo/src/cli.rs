@@ -110,7 +110,8 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
     let outcome = run(&config, shutdown);
     drop(toggler);
     let outcome = outcome?;
-    let recorded = recorder.map(record::Recorder::finish).transpose()?;
+    // A recording that fails to close must not cost the run's report: it is written first.
+    let recorded = recorder.map(record::Recorder::finish).transpose();
     for (name, bytes) in files(&outcome.report, &outcome.series)? {
         dir.write_atomic(&name, &bytes)?;
     }
@@ -124,7 +125,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             dir.path().display()
         )?;
     }
-    say(args.json, out, recorded.as_ref().map(record::cli::summary))?;
+    say(args.json, out, recorded?.as_ref().map(record::cli::summary))?;
     if let (Some(_), Some([on, off])) = (args.record_ab_s, outcome.record_periods) {
         let line = format!(
             "haptic loop period, recording: {on}\nhaptic loop period, paused:    {off}\n\

@@ -147,3 +147,34 @@ fn ctrl_c_stops_an_experiment_and_finalises_its_recording() {
         "a report of a run that did not end"
     );
 }
+
+/// Before: the recorder was closed before the report was written, so a recording that could
+/// not be closed (here: its final name taken, mid-run, by a directory) cost the run's report.
+#[test]
+fn a_recording_that_cannot_be_closed_still_leaves_the_runs_report() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let file = temp("taken.mcap");
+    let out = temp("taken-out");
+    let child = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", "exp1", "--seconds", "120", "--record"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while !record::partial_path(&file).exists() {
+        assert!(started.elapsed() < Duration::from_secs(60), "no recording");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::fs::create_dir_all(file.join("in-the-way")).unwrap();
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("taken.mcap"), "{stderr}");
+    let report = std::fs::read_to_string(out.join("report.json")).unwrap();
+    assert!(report.contains("rms_error_pct"), "{report}");
+}

@@ -141,7 +141,8 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         }
         _ => e.into(),
     })?;
-    let recorded = recorder.map(record::Recorder::finish).transpose()?;
+    // A recording that fails to close must not cost the run's report: it is written first.
+    let recorded = recorder.map(record::Recorder::finish).transpose();
     let wall = started.elapsed().as_secs_f64();
     if let Some(bar) = &bar {
         bar.finish_and_clear();
@@ -161,9 +162,6 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
             serde_json::to_string_pretty(&timing)?.as_bytes(),
         )?;
     }
-    if let Some(r) = &recorded {
-        eprintln!("{}", record::cli::summary(r));
-    }
     if args.json {
         let mut v = serde_json::to_value(&report)?;
         v["wall_seconds"] = timing["wall_seconds"].clone();
@@ -178,6 +176,9 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
                 .as_ref()
                 .map_or(String::new(), |d| format!("; files in {}", d.display()))
         );
+    }
+    if let Some(r) = &recorded? {
+        eprintln!("{}", record::cli::summary(r));
     }
     Ok(())
 }

@@ -143,9 +143,10 @@ pub(super) fn run_cmd(
         tap: None,
     };
     let outcome = app::run(config, shutdown)?;
-    let recorded = recorder.map(Recorder::finish).transpose()?;
+    // A recording that fails to close must not cost the run's report: it is written first.
+    let recorded = recorder.map(Recorder::finish).transpose();
     emit(&outcome, dir.as_ref(), args.json, out)?;
-    report_recording(recorded.as_ref(), args.json, out)
+    report_recording(recorded?.as_ref(), args.json, out)
 }
 
 /// Says where the live view is, when there is one.
