@@ -229,12 +229,13 @@ impl Recorder {
             created_unix_ns: unix_now,
             clock_origin_ns: config.clock_origin_ns,
         };
+        // The live view first: a port that cannot be bound must not leave a file behind.
+        let live = config.live.map(LiveServer::start).transpose()?;
         let out = config
             .mcap
             .as_deref()
             .map(|path| McapOut::create(path, &header))
             .transpose()?;
-        let live = config.live.map(LiveServer::start).transpose()?;
         let live_addr = live.as_ref().map(LiveServer::local_addr);
         let (tx, rx) = std::sync::mpsc::sync_channel(QUEUE);
         let sink = RecordSink {

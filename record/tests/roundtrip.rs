@@ -89,6 +89,28 @@ fn a_recording_read_back_gives_the_same_samples() {
     assert_eq!(rec.events.len() as u64, ticks.div_ceil(100));
 }
 
+/// Before: the file was created before the live view was bound, so a port already taken left
+/// an empty `FILE.mcap.partial` behind the error.
+#[test]
+fn a_live_port_that_is_taken_leaves_no_file_behind() {
+    let path = temp("port-taken.mcap");
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let e = Recorder::start(RecorderConfig {
+        mcap: Some(path.clone()),
+        live: Some(taken.local_addr().unwrap()),
+        kind: Kind::Operator,
+        clock_origin_ns: 0,
+    })
+    .err()
+    .unwrap();
+    assert!(
+        e.to_string()
+            .contains(&taken.local_addr().unwrap().to_string()),
+        "{e}"
+    );
+    assert!(!partial_path(&path).exists() && !path.exists(), "{e}");
+}
+
 /// Before: JSON has no NaN; a tick holding one (a faulty device's reading, which the safety
 /// layer exists to catch) was written as `null` and refused on reading, and the recording with
 /// it. It reads back, the NaN (or infinity: its sign is lost) as NaN, and the ticks after it.
