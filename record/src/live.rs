@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use base64::Engine as _;
 use futures_util::{SinkExt as _, StreamExt as _};
 use serde::Serialize;
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::{TcpListener, TcpSocket, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 use tokio_tungstenite::tungstenite::http::{HeaderValue, StatusCode};
@@ -32,6 +32,9 @@ use crate::encode::ChannelSchema;
 
 /// Messages queued per viewer before new ones are dropped: about 2 s of the decimated streams.
 pub const CLIENT_QUEUE: usize = 1024;
+/// The kernel's send buffer per viewer \[bytes\] (Linux doubles it): a few frames of the scene
+/// and cloud, ample for a viewer that keeps up, even over a network.
+pub const VIEWER_SEND_BUFFER: u32 = 256 << 10;
 /// The subprotocols accepted, in order of preference.
 pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
 
@@ -114,12 +117,24 @@ impl LiveServer {
             .enable_all()
             .build()
             .map_err(io)?;
-        // Bound here, blocking, so that starting works inside another runtime too.
-        let listener = std::net::TcpListener::bind(addr).map_err(io)?;
-        listener.set_nonblocking(true).map_err(io)?;
+        // Bound here, on the caller's thread, so that starting works inside another runtime too.
         let listener = {
             let _entered = runtime.enter();
-            TcpListener::from_std(listener).map_err(io)?
+            let socket = if addr.is_ipv4() {
+                TcpSocket::new_v4()
+            } else {
+                TcpSocket::new_v6()
+            }
+            .map_err(io)?;
+            socket.set_reuseaddr(true).map_err(io)?;
+            // Inherited by every viewer's socket: what a stalled viewer holds in the kernel is
+            // bounded, so its own queue fills and drops (counted) within a second or two, and a
+            // slow one sees fresh data rather than megabytes of backlog.
+            socket
+                .set_send_buffer_size(VIEWER_SEND_BUFFER)
+                .map_err(io)?;
+            socket.bind(addr).map_err(io)?;
+            socket.listen(64).map_err(io)?
         };
         let bound = listener.local_addr().map_err(io)?;
         let shared = Arc::new(Shared::default());

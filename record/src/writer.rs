@@ -325,8 +325,32 @@ impl Drop for Recorder {
 /// decimated topic).
 struct Live {
     server: LiveServer,
-    channels: HashMap<&'static str, (u32, Option<i64>)>,
+    channels: HashMap<&'static str, LiveChannel>,
 }
+
+/// A live channel: its id, and when it last sent a message, in the producers' time (the
+/// decimation of the 1 kHz topics) and in wall time (the cap on every topic but the logs).
+struct LiveChannel {
+    id: u32,
+    last_t_ns: Option<i64>,
+    last_sent: Option<Instant>,
+}
+
+/// The most a live topic is sent in wall time, whatever the producers' clock does (an
+/// experiment runs tens of times faster than real time): scenes, transforms and clouds at
+/// display rate, the rest at twice the plots' rate.
+fn live_min_gap(topic_name: &str) -> Option<Duration> {
+    match topic_name {
+        topic::SCENE | topic::TF | topic::OPERATOR_CLOUD | topic::TELEROBOT_CLOUD => {
+            Some(Duration::from_secs_f64(1.0 / LIVE_MAX_SCENE_HZ))
+        }
+        topic::EVENTS | topic::RUN | topic::RUN_END => None,
+        _ => Some(Duration::from_nanos(LIVE_PLOT_INTERVAL_NS as u64 / 2)),
+    }
+}
+
+/// The live view's display rate cap \[Hz\].
+pub const LIVE_MAX_SCENE_HZ: f64 = 60.0;
 
 impl Live {
     fn offer(
@@ -338,20 +362,28 @@ impl Live {
         data: &[u8],
     ) {
         let server = &self.server;
-        let entry = self
-            .channels
-            .entry(topic)
-            .or_insert_with(|| (server.channel(topic, schema), None));
+        let entry = self.channels.entry(topic).or_insert_with(|| LiveChannel {
+            id: server.channel(topic, schema),
+            last_t_ns: None,
+            last_sent: None,
+        });
         if decimated(topic) {
             if entry
-                .1
+                .last_t_ns
                 .is_some_and(|last| t_ns - last < LIVE_PLOT_INTERVAL_NS)
             {
                 return;
             }
-            entry.1 = Some(t_ns);
+            entry.last_t_ns = Some(t_ns);
         }
-        server.offer(entry.0, log_time, data);
+        if let Some(gap) = live_min_gap(topic) {
+            let now = Instant::now();
+            if entry.last_sent.is_some_and(|last| now - last < gap) {
+                return;
+            }
+            entry.last_sent = Some(now);
+        }
+        server.offer(entry.id, log_time, data);
     }
 }
 

@@ -111,11 +111,14 @@ async fn a_client_subscribes_and_receives_decimated_data() {
         .unwrap();
     tokio::time::sleep(Duration::from_millis(100)).await;
 
-    // One second of 1 kHz ticks.
+    // One second of 1 kHz ticks, in real time (batches of 10 every 10 ms, as a helper hands
+    // them over).
     let producer = std::thread::spawn(move || {
+        let start = std::time::Instant::now();
         for k in (1..1001).step_by(10) {
             sink.send(tick_batch(k, k + 10));
-            std::thread::sleep(Duration::from_millis(2));
+            let due = Duration::from_millis(k + 9);
+            std::thread::sleep(due.saturating_sub(start.elapsed()));
         }
     });
     let (mut ticks, mut scenes) = (Vec::new(), 0);
@@ -136,11 +139,12 @@ async fn a_client_subscribes_and_receives_decimated_data() {
         }
     }
     producer.join().unwrap();
-    // Plots at 100 Hz out of 1 kHz: every 10th tick; the scene at 50 Hz.
-    assert!((95..=101).contains(&ticks.len()), "{} ticks", ticks.len());
+    // Plots at 100 Hz out of 1 kHz: every 10th tick; the scene at 50 Hz. (A few fewer if the
+    // recorder thread, delayed, takes two batches at once: the wall-time cap drops the second.)
+    assert!((85..=101).contains(&ticks.len()), "{} ticks", ticks.len());
     assert!(ticks.windows(2).all(|w| w[1].index - w[0].index >= 10));
     assert!(ticks.iter().all(|t| *t == operator_tick(t.index)));
-    assert!((45..=51).contains(&scenes), "{scenes} scenes");
+    assert!((40..=51).contains(&scenes), "{scenes} scenes");
     let report = recorder.finish().unwrap();
     let live = report.live.unwrap();
     assert_eq!((live.clients, live.dropped), (1, 0));
@@ -174,7 +178,21 @@ async fn a_stalled_viewer_costs_dropped_messages_not_a_blocked_recorder() {
         sink.send(b);
     }
     tokio::time::sleep(Duration::from_millis(200)).await;
-    let mut ws = connect(recorder.live_addr().unwrap(), "foxglove.websocket.v1")
+    // A small receive buffer, so that what stalls is the viewer and not the kernel's autotuned
+    // megabytes of socket buffer.
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(16 << 10).unwrap();
+    let stream = tokio_tungstenite::MaybeTlsStream::Plain(
+        socket.connect(recorder.live_addr().unwrap()).await.unwrap(),
+    );
+    let mut request = format!("ws://{}", recorder.live_addr().unwrap())
+        .into_client_request()
+        .unwrap();
+    request.headers_mut().insert(
+        "sec-websocket-protocol",
+        HeaderValue::from_static("foxglove.websocket.v1"),
+    );
+    let (mut ws, _) = tokio_tungstenite::client_async(request, stream)
         .await
         .unwrap();
     let _ = next_json(&mut ws).await;
@@ -194,14 +212,20 @@ async fn a_stalled_viewer_costs_dropped_messages_not_a_blocked_recorder() {
     .await
     .unwrap();
     tokio::time::sleep(Duration::from_millis(100)).await;
-    // From here on the viewer reads nothing. 20 s of a demo's messages, clouds included.
+    // From here on the viewer reads nothing. 60 s of a demo's messages, clouds included, at
+    // twenty times real time (the live view sends at most at display rate in wall time, so
+    // filling the viewer's queue and the socket's buffers takes seconds).
     let producer = std::thread::spawn(move || {
         let mut refused = 0;
-        for batch in batches(20_000) {
+        let start = std::time::Instant::now();
+        for (i, batch) in batches(60_000).into_iter().enumerate() {
             while !sink.send(batch.clone()) {
                 refused += 1;
                 std::thread::sleep(Duration::from_millis(1));
             }
+            // A batch is 20 ms of run.
+            let due = Duration::from_millis(i as u64);
+            std::thread::sleep(due.saturating_sub(start.elapsed()));
         }
         refused
     });
@@ -210,8 +234,87 @@ async fn a_stalled_viewer_costs_dropped_messages_not_a_blocked_recorder() {
         .unwrap();
     let report = recorder.finish().unwrap();
     let live = report.live.unwrap();
+    eprintln!("stalled viewer: {live:?}");
     assert!(live.dropped > 0, "{live:?}");
     let read = record::read(&path, &[topic::OPERATOR_TICK]).unwrap();
-    assert_eq!(read.operator_ticks.len(), 1 + 20_000, "refused {refused}");
+    assert_eq!(read.operator_ticks.len(), 1 + 60_000, "refused {refused}");
     drop(ws);
+}
+
+/// Before: the live view's rates were counted in the producers' clock only, so `mmt experiment
+/// --live`, tens of times faster than real time, sent scenes at thousands per second of wall
+/// time. Now the scene goes out at most at display rate in wall time, the plots at most at
+/// twice their rate, however fast the run.
+#[tokio::test]
+async fn scenes_go_out_at_display_rate_in_wall_time_however_fast_the_run() {
+    let recorder = start_live();
+    let sink = recorder.sink();
+    sink.send_one(0, Message::Run(Box::new(run_start(Side::Operator))));
+    let mut ws = connect(recorder.live_addr().unwrap(), "foxglove.websocket.v1")
+        .await
+        .unwrap();
+    let _ = next_json(&mut ws).await;
+    sink.send(tick_batch(0, 1));
+    let mut ids = std::collections::HashMap::new();
+    while !ids.contains_key(topic::SCENE) || !ids.contains_key(topic::OPERATOR_TICK) {
+        let advert = next_json(&mut ws).await;
+        for c in advert["channels"].as_array().unwrap() {
+            ids.insert(c["topic"].as_str().unwrap().to_owned(), c["id"].clone());
+        }
+    }
+    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [
+        {"id": 1, "channelId": ids[topic::OPERATOR_TICK]},
+        {"id": 2, "channelId": ids[topic::SCENE]},
+    ]});
+    ws.send(Ws::Text(subscribe.to_string().into()))
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    // 40 s of 1 kHz ticks in about 2 s: twenty times real time, as an experiment runs.
+    let started = std::time::Instant::now();
+    let producer = std::thread::spawn(move || {
+        let start = std::time::Instant::now();
+        for (i, k) in (1..40_001).step_by(20).enumerate() {
+            sink.send(tick_batch(k, k + 20));
+            let due = Duration::from_millis(i as u64);
+            std::thread::sleep(due.saturating_sub(start.elapsed()));
+        }
+    });
+    let (mut ticks, mut scenes, mut last) = (0u32, 0u32, 0u64);
+    let mut wall = 0.0;
+    // Until nothing has come for half a second (the run's very last ticks may be capped away).
+    loop {
+        let Ok(Some(Ok(m))) = tokio::time::timeout(Duration::from_millis(500), ws.next()).await
+        else {
+            break;
+        };
+        wall = started.elapsed().as_secs_f64();
+        let Ws::Binary(b) = m else { continue };
+        match u32::from_le_bytes(b[1..5].try_into().unwrap()) {
+            1 => {
+                ticks += 1;
+                last = serde_json::from_slice::<OperatorTick>(&b[13..])
+                    .unwrap()
+                    .index;
+            }
+            _ => scenes += 1,
+        }
+    }
+    producer.join().unwrap();
+    assert!(
+        last >= 39_000,
+        "the last second of ticks never came: {last}"
+    );
+    // At producer rates: 4,000 ticks and 2,000 scenes. In wall time: at most 200 and 60 a second.
+    let scene_hz = f64::from(scenes) / wall;
+    let tick_hz = f64::from(ticks) / wall;
+    assert!(
+        scene_hz <= 61.0 && scenes >= 20,
+        "{scenes} scenes in {wall:.2} s"
+    );
+    assert!(
+        tick_hz <= 201.0 && ticks >= 50,
+        "{ticks} ticks in {wall:.2} s"
+    );
+    recorder.finish().unwrap();
 }
