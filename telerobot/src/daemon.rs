@@ -522,7 +522,10 @@ impl Keeper {
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner) = s;
                 last = s;
-                guard_log.update(&last);
+                let events = guard_log.update(&last);
+                if let Some(f) = &mut self.record {
+                    f.events(last.now_ns, events);
+                }
                 self.outages.update(&last);
             }
             let now_connected = self.link.status().connected();

@@ -123,6 +123,21 @@ impl Forward {
         }
     }
 
+    /// The motion guard's and the robot's events (`source` "guard"), at `t_ns`.
+    pub(crate) fn events(&mut self, t_ns: i64, events: Vec<(Level, String)>) {
+        if self.sink.is_paused() {
+            return;
+        }
+        for (level, text) in events {
+            let rec = EventRec {
+                level,
+                source: "guard",
+                text,
+            };
+            self.push(t_ns, Message::Event(rec));
+        }
+    }
+
     fn push(&mut self, t_ns: i64, message: Message) {
         self.batch.push(Timed { t_ns, message });
     }

@@ -2,6 +2,8 @@
 //! work (once per episode: the loop only counts) and the gaps in the commands (outages across
 //! sessions).
 
+use record::schema::Level;
+
 use crate::control::LoopSnapshot;
 
 /// Logs the motion guard's work once per episode (the loop only counts).
@@ -13,7 +15,10 @@ pub(crate) struct GuardLog {
 }
 
 impl GuardLog {
-    pub(crate) fn update(&mut self, s: &LoopSnapshot) {
+    /// Logs what the guard did since the last snapshot, and returns it as events (for the
+    /// recording's `/events`).
+    pub(crate) fn update(&mut self, s: &LoopSnapshot) -> Vec<(Level, String)> {
+        let mut events = Vec::new();
         let (g, was) = (s.guard, self.logged);
         for (name, now, before) in [
             ("workspace box", g.workspace, was.workspace),
@@ -28,6 +33,14 @@ impl GuardLog {
                     ticks = now.ticks,
                     "a motion limit clamped the commanded motion"
                 );
+                events.push((
+                    Level::Warning,
+                    format!(
+                        "session {}: the {name} limit clamped the commanded motion \
+                         (episode {}, {} ticks so far)",
+                        s.session, now.episodes, now.ticks
+                    ),
+                ));
             }
         }
         if g.faults > was.faults {
@@ -37,6 +50,14 @@ impl GuardLog {
                 recovered = g.recovered,
                 "the robot's state was not finite: the bridge was reset"
             );
+            events.push((
+                Level::Error,
+                format!(
+                    "session {}: the robot's state was not finite: the bridge was reset \
+                     ({} faults, {} recovered)",
+                    s.session, g.faults, g.recovered
+                ),
+            ));
         }
         if g.stale_state.episodes > was.stale_state.episodes {
             tracing::warn!(
@@ -45,6 +66,14 @@ impl GuardLog {
                 "no robot state for longer than 50 ms: holding the last commanded pose, \
                  estimation paused until states return"
             );
+            events.push((
+                Level::Warning,
+                format!(
+                    "session {}: no robot state for longer than 50 ms: holding the last \
+                     commanded pose, estimation paused (episode {})",
+                    s.session, g.stale_state.episodes
+                ),
+            ));
         }
         if was.no_state_ticks == 0 && g.no_state_ticks > 0 {
             tracing::info!(
@@ -60,6 +89,14 @@ impl GuardLog {
                 refused,
                 "commands refused: implausible playout time (their clock jumped)"
             );
+            events.push((
+                Level::Warning,
+                format!(
+                    "session {}: {refused} commands refused: implausible playout time \
+                     (their clock jumped)",
+                    s.session
+                ),
+            ));
             self.implausible_session = s.session;
         }
         self.implausible = if s.session == self.implausible_session {
@@ -67,6 +104,7 @@ impl GuardLog {
         } else {
             0
         };
+        events
     }
 }
 
@@ -98,5 +136,40 @@ impl CommandGaps {
         }
         self.last = key;
         self.at_ns = Some(s.now_ns);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Before: the guard's work went to the log only; a recording (`/events`) had the session
+    /// changes but no limit, fault or state gap of the telerobot.
+    #[test]
+    fn each_new_guard_episode_is_one_event_and_nothing_repeats() {
+        let mut log = GuardLog::default();
+        let mut s = LoopSnapshot {
+            session: 3,
+            ..LoopSnapshot::default()
+        };
+        assert!(log.update(&s).is_empty());
+        s.guard.workspace.episodes = 1;
+        s.guard.workspace.ticks = 40;
+        s.guard.faults = 1;
+        let events = log.update(&s);
+        assert_eq!(events.len(), 2, "{events:?}");
+        assert!(
+            events
+                .iter()
+                .any(|(l, t)| *l == Level::Warning && t.contains("workspace box")),
+            "{events:?}"
+        );
+        assert!(events.iter().any(|(l, _)| *l == Level::Error), "{events:?}");
+        // The same counts again: nothing new.
+        assert!(log.update(&s).is_empty());
+        s.guard.stale_state.episodes = 1;
+        let events = log.update(&s);
+        assert_eq!(events.len(), 1, "{events:?}");
+        assert!(events[0].1.contains("no robot state"), "{events:?}");
     }
 }
