@@ -25,6 +25,7 @@ pub struct ReportArgs {
 }
 
 pub fn run(args: ReportArgs) -> Result<()> {
+    let started = std::time::Instant::now();
     let r = report_file(&args.file)?;
     for w in &r.warnings {
         eprintln!("warning: {w}");
@@ -36,6 +37,12 @@ pub fn run(args: ReportArgs) -> Result<()> {
             std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
         }
     }
+    // On stderr: the report on stdout stays the run's.
+    eprintln!(
+        "{} read and reported in {:.2} s",
+        args.file.display(),
+        started.elapsed().as_secs_f64()
+    );
     if let Some(live) = &args.against {
         return against(&r.json, live);
     }
