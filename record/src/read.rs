@@ -64,6 +64,18 @@ pub enum ReadError {
         /// The mmt version that wrote it.
         mmt_version: String,
     },
+    /// One of ours, of this version, of a kind this build does not know.
+    #[error(
+        "{path} is an mmt recording of an unknown kind '{kind}' (written by mmt {mmt_version}); this build knows operator, telerobot, demo and experiment recordings"
+    )]
+    UnknownKind {
+        /// The file.
+        path: String,
+        /// Its kind, as written.
+        kind: String,
+        /// The mmt version that wrote it.
+        mmt_version: String,
+    },
     /// One of ours, of a kind the caller cannot use.
     #[error("{path} is {what}; {needed}")]
     Kind {
@@ -306,7 +318,11 @@ fn parse_header(
     }
     Ok(Header {
         format_version: FORMAT_VERSION,
-        kind: Kind::parse(&field("kind")).ok_or_else(version_error)?,
+        kind: Kind::parse(&field("kind")).ok_or_else(|| ReadError::UnknownKind {
+            path: name.to_owned(),
+            kind: field("kind"),
+            mmt_version: field("mmt_version"),
+        })?,
         mmt_version: field("mmt_version"),
         created_unix_ns: field("created_unix_ns").parse().unwrap_or(0),
         clock_origin_ns: field("clock_origin_ns").parse().unwrap_or(0),

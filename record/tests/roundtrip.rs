@@ -416,6 +416,18 @@ fn recordings_of_another_kind_or_version_are_refused_saying_what_they_are() {
         "{e}"
     );
 
+    // Before: an unknown kind in a file of this version was reported as another version.
+    let unknown = temp("unknown-kind.mcap");
+    let meta = BTreeMap::from([
+        ("format_version".to_owned(), FORMAT_VERSION.to_string()),
+        ("kind".to_owned(), "bag".to_owned()),
+        ("mmt_version".to_owned(), "9.9.9".to_owned()),
+    ]);
+    write_raw(&unknown, Some(meta));
+    let e = read(&unknown, &[]).unwrap_err();
+    assert!(matches!(e, ReadError::UnknownKind { .. }), "{e}");
+    assert!(e.to_string().contains("unknown kind 'bag'"), "{e}");
+
     let csv = temp("not.mcap");
     std::fs::write(&csv, "t_s,x,y,z\n0,0,0,0\n").unwrap();
     let e = read(&csv, &[]).unwrap_err();
