@@ -20,8 +20,34 @@ pub struct RecordArgs {
     pub record: Option<PathBuf>,
     /// Serve the live view (Foxglove WebSocket protocol) on ADDR; `--live` alone serves on
     /// 127.0.0.1:8765 (loopback: give 0.0.0.0:PORT to serve other machines).
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_LIVE)]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_LIVE,
+          value_parser = live_addr)]
     pub live: Option<SocketAddr>,
+}
+
+/// `--live`'s value: `IP:PORT`, `HOST:PORT` (resolved: `localhost:8765`), or a bare `PORT` on
+/// loopback.
+fn live_addr(value: &str) -> Result<SocketAddr, String> {
+    if let Ok(port) = value.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    if let Ok(addr) = value.parse() {
+        return Ok(addr);
+    }
+    let addrs: Vec<SocketAddr> = std::net::ToSocketAddrs::to_socket_addrs(value)
+        .map(Iterator::collect)
+        .unwrap_or_default();
+    // IPv4 first: what a viewer's `ws://localhost:PORT` most often reaches.
+    addrs
+        .iter()
+        .find(|a| a.is_ipv4())
+        .or(addrs.first())
+        .copied()
+        .ok_or_else(|| {
+            "expected IP:PORT, HOST:PORT or a port on loopback (e.g. 127.0.0.1:8765, \
+             localhost:8765, 8765)"
+                .to_owned()
+        })
 }
 
 impl RecordArgs {
@@ -100,6 +126,28 @@ impl Drop for Toggler {
         self.stop.trigger();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Before: `--live` took only IP:PORT; `localhost:8765` and a bare port were refused.
+    #[test]
+    fn live_takes_an_address_a_host_name_or_a_port() {
+        let loopback = |port| SocketAddr::from(([127, 0, 0, 1], port));
+        assert_eq!(live_addr("127.0.0.1:9000"), Ok(loopback(9000)));
+        assert_eq!(live_addr("9001"), Ok(loopback(9001)));
+        assert_eq!(live_addr("localhost:9002"), Ok(loopback(9002)));
+        assert_eq!(
+            live_addr("0.0.0.0:8765"),
+            Ok(SocketAddr::from(([0, 0, 0, 0], 8765)))
+        );
+        for bad in ["", "127.0.0.1", "99999", "127.0.0.1:port"] {
+            let e = live_addr(bad).unwrap_err();
+            assert!(e.contains("expected IP:PORT"), "{bad}: {e}");
         }
     }
 }
