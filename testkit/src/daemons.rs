@@ -42,7 +42,9 @@ pub fn telerobot_on(
     }
 }
 
-fn telerobot_config(
+/// The configuration [`telerobot`] starts the daemon with (on `listen`), for a test that
+/// changes something before it starts it.
+pub fn telerobot_config(
     identity: &Identity,
     trusted: &[&Identity],
     delay_ms: f64,

@@ -2,7 +2,8 @@
 //! runs over loopback with a 100 ms shim while a counting global allocator (this test binary
 //! only) counts the allocations and frees made on the threads named `haptic-loop` and
 //! `telerobot-loop`. After a warm-up that covers the first contact, the first model and the
-//! first clouds, the counts must not move.
+//! first clouds, the counts must not move — also while both sides record and serve the live
+//! view (issue 15: the recording is written off the loops).
 #![allow(unsafe_code)] // the GlobalAlloc impl; see the SAFETY comments
 #![allow(clippy::unwrap_used)]
 
@@ -93,4 +94,62 @@ fn neither_loop_allocates_or_frees_once_running() {
         running, 0,
         "allocations or frees on the loop threads while running"
     );
+}
+
+/// Before: the recording branch of both loops (their tick records for `--record` and `--live`)
+/// was allocation-free by reading only; no test ran the loops with a recorder.
+#[test]
+fn neither_loop_allocates_or_frees_while_both_sides_record() {
+    let _serial = serial();
+    let certs = Certs::new();
+    let dir = std::env::temp_dir().join(format!("no-alloc-rec-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let recorder = |name: &str, kind| {
+        record::Recorder::start(record::RecorderConfig {
+            mcap: Some(dir.join(name)),
+            live: Some(([127, 0, 0, 1], 0).into()),
+            kind,
+            clock_origin_ns: rt::monotonic_ns(),
+        })
+        .unwrap()
+    };
+    let tr_recorder = recorder("telerobot.mcap", record::Kind::Telerobot);
+    let op_recorder = recorder("operator.mcap", record::Kind::Operator);
+    let mut tr_config = telerobot_config(
+        &certs.telerobot,
+        &[&certs.operator],
+        100.0,
+        "127.0.0.1:0".parse().unwrap(),
+    );
+    tr_config.record = Some(tr_recorder.sink());
+    let tr = telerobot::Telerobot::start(tr_config).unwrap();
+    let shim = shim(tr.local_addr(), 100.0);
+    let mut config = operator_config(
+        shim.local_addr(),
+        &certs.operator,
+        &certs.telerobot,
+        "alice",
+        10.0,
+        100.0,
+    );
+    config.record = Some(op_recorder.sink());
+    let operator = spawn_operator(config);
+    wait_connected(&tr);
+    std::thread::sleep(Duration::from_secs(5));
+    let warm = ON_LOOPS.load(Relaxed);
+    std::thread::sleep(Duration::from_secs(4));
+    let running = ON_LOOPS.load(Relaxed) - warm;
+    let outcome = operator.join().unwrap().unwrap();
+    tr.stop();
+    shim.shutdown().unwrap();
+    let (tr_report, op_report) = (tr_recorder.finish().unwrap(), op_recorder.finish().unwrap());
+    assert!(outcome.report.experiment.render_start_s.is_some());
+    // Both recorded the run as it went.
+    assert!(tr_report.messages > 10_000, "{tr_report:?}");
+    assert!(op_report.messages > 10_000, "{op_report:?}");
+    assert_eq!(
+        running, 0,
+        "allocations or frees on the loop threads while recording"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
