@@ -74,18 +74,24 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-#[test]
-fn neither_loop_allocates_or_frees_once_running() {
-    let _serial = serial();
-    let (tr, shim, config) = through_shim(&Certs::new(), 100.0, 10.0);
-    let operator = spawn_operator(config);
-    wait_connected(&tr);
+/// The loops' allocations and frees over the run's 4 s after a 5 s warm-up, from the session's
+/// start on `tr`.
+fn allocations_once_running(tr: &telerobot::Telerobot) -> u64 {
+    wait_connected(tr);
     // Warm-up: contact at 1 s, the first model about 2 s later.
     std::thread::sleep(Duration::from_secs(5));
     let warm = ON_LOOPS.load(Relaxed);
     // The rest of the run: contact episodes end and start again, models and clouds keep coming.
     std::thread::sleep(Duration::from_secs(4));
-    let running = ON_LOOPS.load(Relaxed) - warm;
+    ON_LOOPS.load(Relaxed) - warm
+}
+
+#[test]
+fn neither_loop_allocates_or_frees_once_running() {
+    let _serial = serial();
+    let (tr, shim, config) = through_shim(&Certs::new(), 100.0, 10.0);
+    let operator = spawn_operator(config);
+    let running = allocations_once_running(&tr);
     let outcome = operator.join().unwrap().unwrap();
     tr.stop();
     shim.shutdown().unwrap();
@@ -134,11 +140,7 @@ fn neither_loop_allocates_or_frees_while_both_sides_record() {
     );
     config.record = Some(op_recorder.sink());
     let operator = spawn_operator(config);
-    wait_connected(&tr);
-    std::thread::sleep(Duration::from_secs(5));
-    let warm = ON_LOOPS.load(Relaxed);
-    std::thread::sleep(Duration::from_secs(4));
-    let running = ON_LOOPS.load(Relaxed) - warm;
+    let running = allocations_once_running(&tr);
     let outcome = operator.join().unwrap().unwrap();
     tr.stop();
     shim.shutdown().unwrap();
