@@ -1,6 +1,6 @@
 //! The simulated depth camera of a scene.
 
-use crate::scene::{CloudKind, Scene};
+use crate::scene::{CloudKind, Scene, WindowCentre};
 use crate::world::World;
 use mmt::cloud::{CloudError, CloudFrame, Pose};
 use mmt::vec3;
@@ -9,8 +9,9 @@ use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
 /// The simulated depth camera: the object's (large) contact face seen in a window of the scene's
-/// `cloud.size_m` centred on the tool, sampled on a grid fixed to the object — the points move
-/// with the object as it slides — with the scene's noise and dropout.
+/// `cloud.size_m` centred on the tool or on the surface point (`cloud.centre`), sampled on a grid
+/// fixed to the object — the points move with the object as it slides — with the scene's noise
+/// and dropout.
 pub struct Camera {
     enabled: bool,
     moving: bool,
@@ -21,6 +22,7 @@ pub struct Camera {
     dropout: f64,
     spacing_m: f64,
     window_m: [f64; 2],
+    follows_tool: bool,
     origin: [f64; 3],
 }
 
@@ -40,6 +42,7 @@ impl Camera {
             dropout: c.dropout,
             spacing_m: c.spacing_m,
             window_m: c.size_m,
+            follows_tool: c.centre == WindowCentre::Tool,
             origin: scene.surface.point_m,
         }
     }
@@ -58,8 +61,12 @@ impl Camera {
         }
         self.next_ns = now_ns + self.period_ns;
         let f = world.frame();
-        let rel = vec3::sub(tool_m, self.origin);
-        let centre = [vec3::dot(rel, f.tangent1), vec3::dot(rel, f.tangent2)];
+        let centre = if self.follows_tool {
+            let rel = vec3::sub(tool_m, self.origin);
+            [vec3::dot(rel, f.tangent1), vec3::dot(rel, f.tangent2)]
+        } else {
+            [0.0; 2]
+        };
         let s = self.spacing_m;
         // Grid indices of the object's face inside the window (the grid moves with the object).
         let range = |axis: usize| {
@@ -87,5 +94,64 @@ impl Camera {
             }
         }
         CloudFrame::new(points, now_ns, Pose::default()).map(Some)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// The frame's extent along the scene's tangents `[min, max]` per axis \[m\].
+    fn extent(frame: &CloudFrame, scene: &Scene, world: &World) -> [[f64; 2]; 2] {
+        let f = world.frame();
+        let mut out = [[f64::INFINITY, f64::NEG_INFINITY]; 2];
+        for p in frame.points() {
+            let rel = vec3::sub(p.map(f64::from), scene.surface.point_m);
+            for (axis, t) in [f.tangent1, f.tangent2].into_iter().enumerate() {
+                let u = vec3::dot(rel, t);
+                out[axis] = [out[axis][0].min(u), out[axis][1].max(u)];
+            }
+        }
+        out
+    }
+
+    /// Issue 13, item 6: a window that follows the tool is, at the operator, centred where the
+    /// tool was a round trip ago; at 2 s one way the exp-3 path left it. A window fixed on the
+    /// surface point does not move with the tool.
+    #[test]
+    fn the_window_follows_the_tool_or_stays_on_the_surface_point() {
+        let mut scene = Scene::exp1();
+        scene.cloud.noise_m = 0.0;
+        let world = World::new(&scene, scene.surface.point_m, 1).unwrap();
+        let f = *world.frame();
+        let away = vec3::add(
+            scene.surface.point_m,
+            vec3::add(
+                vec3::scale(f.tangent1, 0.08),
+                vec3::scale(f.tangent2, -0.05),
+            ),
+        );
+        let half = scene.cloud.size_m.map(|s| s / 2.0);
+        let spacing = scene.cloud.spacing_m;
+        for (centre, expected) in [
+            (WindowCentre::Tool, [0.08, -0.05]),
+            (WindowCentre::Surface, [0.0, 0.0]),
+        ] {
+            scene.cloud.centre = centre;
+            let mut camera = Camera::new(&scene, 1);
+            let frame = camera.frame(0, &world, away, &[0.0; 2]).unwrap().unwrap();
+            let e = extent(&frame, &scene, &world);
+            for axis in 0..2 {
+                let mid = (e[axis][0] + e[axis][1]) / 2.0;
+                assert!(
+                    (mid - expected[axis]).abs() <= spacing,
+                    "{centre:?} axis {axis}: centred at {mid}, expected {}",
+                    expected[axis]
+                );
+                let width = e[axis][1] - e[axis][0];
+                assert!((width - 2.0 * half[axis]).abs() <= 2.0 * spacing, "{width}");
+            }
+        }
     }
 }

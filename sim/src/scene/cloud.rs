@@ -4,6 +4,7 @@
 //! [cloud]                      # the simulated camera (default)
 //! source = "plane"             # plane | file | ros2 | none
 //! size_m = [0.3, 0.3]
+//! centre = "tool"             # tool | surface: where the window is centred
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
 //! dropout = 0.0
@@ -57,6 +58,10 @@ pub struct CloudSource {
     /// the tool [m]. It must cover the tool's motion over a round trip: at 400 ms each way and
     /// 15 cm/s, 12 cm.
     pub size_m: [f64; 2],
+    /// `plane`: where the window is centred: on the tool (a camera that follows it, as one on
+    /// the wrist does), or on the scene's surface point (a camera fixed above the table; then
+    /// `size_m` must cover the tool's whole workspace, at any delay).
+    pub centre: WindowCentre,
     /// `plane`: grid spacing [m]. Must be below `√2·(r1 + r2)/2` of the proxy.
     pub spacing_m: f64,
     /// `plane`: Gaussian noise per coordinate [m].
@@ -92,6 +97,7 @@ impl Default for CloudSource {
         CloudSource {
             source: CloudKind::Plane,
             size_m: [0.3, 0.3],
+            centre: WindowCentre::Tool,
             spacing_m: 0.0045,
             noise_m: 0.0005,
             dropout: 0.0,
@@ -120,6 +126,17 @@ pub enum CloudKind {
     Ros2,
     /// No cloud.
     None,
+}
+
+/// Where the simulated camera's window on the face is centred.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WindowCentre {
+    /// On the tool, frame by frame. Over a link of round trip `T` the operator's newest frame
+    /// is centred where the tool was `T` ago: `size_m` must cover the tool's motion over `T`.
+    Tool,
+    /// On the scene's surface point, whatever the tool does.
+    Surface,
 }
 
 /// A rigid transform as a scene writes it: base ← cloud.

@@ -21,6 +21,7 @@
 //! [cloud]
 //! source = "plane"            # plane | file | ros2 | none (see `cloud`)
 //! size_m = [0.3, 0.3]
+//! centre = "tool"             # tool | surface: what the camera window is centred on
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
 //! dropout = 0.0
@@ -54,7 +55,9 @@ mod settings;
 mod validate;
 
 pub use budget::CloudBudgetFit;
-pub use cloud::{CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS};
+pub use cloud::{
+    CloudKind, CloudPose, CloudSource, DEFAULT_MAX_POINTS, DEFAULT_STALE_MS, WindowCentre,
+};
 pub use validate::SceneError;
 
 use crate::SensorNoise;
