@@ -81,7 +81,12 @@ impl GuardLog {
             );
         }
         self.logged = g;
-        // Refusals are the node's (one per session): logged once per session.
+        self.refusals(s, &mut events);
+        events
+    }
+
+    /// Refusals are the node's (one per session): logged once per session.
+    fn refusals(&mut self, s: &LoopSnapshot, events: &mut Vec<(Level, String)>) {
         let refused = s.node.implausible_commands;
         if refused > 0 && (s.session != self.implausible_session || self.implausible == 0) {
             tracing::warn!(
@@ -104,7 +109,6 @@ impl GuardLog {
         } else {
             0
         };
-        events
     }
 }
 

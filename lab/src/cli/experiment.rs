@@ -97,12 +97,9 @@ fn as_flag(e: crate::experiment::ExperimentError) -> anyhow::Error {
     }
 }
 
-pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
-    let config = config(&args)?;
-    // Every setting before any file: a refused run leaves no recording behind.
-    config.validate().map_err(as_flag)?;
-    // Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
-    let bar = (config.seconds >= 100.0 && !args.json).then(|| {
+/// Progress for runs longer than a few seconds of wall time (≈ 100 simulated seconds).
+fn progress_bar(config: &ExperimentConfig, json: bool) -> Option<indicatif::ProgressBar> {
+    (config.seconds >= 100.0 && !json).then(|| {
         let bar = indicatif::ProgressBar::new(1000);
         bar.set_style(
             indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% eta {eta}")
@@ -110,7 +107,14 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
         );
         bar.set_message(format!("{} {:.0} s", config.kind.name(), config.seconds));
         bar
-    });
+    })
+}
+
+pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
+    let config = config(&args)?;
+    // Every setting before any file: a refused run leaves no recording behind.
+    config.validate().map_err(as_flag)?;
+    let bar = progress_bar(&config, args.json);
     // Checked before the run: a path that cannot be written must not cost the run.
     let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
