@@ -99,30 +99,43 @@ fn recordings_of_the_wrong_kind_are_refused_saying_what_they_are() {
     assert!(e.contains(&not_mcap.display().to_string()), "{e}");
 }
 
+/// `mmt experiment NAME --seconds SECONDS --record file --out out`, returned once its partial
+/// recording holds `bytes` or more.
+fn recording_experiment(
+    name: &str,
+    seconds: &str,
+    file: &std::path::Path,
+    out: &std::path::Path,
+    bytes: u64,
+) -> std::process::Child {
+    use std::time::{Duration, Instant};
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["experiment", name, "--seconds", seconds, "--record"])
+        .arg(file)
+        .arg("--out")
+        .arg(out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while std::fs::metadata(record::partial_path(file)).map_or(0, |m| m.len()) < bytes {
+        assert!(started.elapsed() < Duration::from_secs(60), "no recording");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child
+}
+
 /// Before: `mmt experiment` had no Ctrl-C handling; an interrupted run with `--record` left
 /// only `FILE.mcap.partial`. It now stops at its next progress point, closes the recording as
 /// on any error (renamed into place, readable), writes no report and says where it stopped.
 #[test]
 fn ctrl_c_stops_an_experiment_and_finalises_its_recording() {
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
+    use std::process::Command;
     let file = temp("interrupted.mcap");
     let out = temp("interrupted-out");
-    let child = Command::new(env!("CARGO_BIN_EXE_mmt"))
-        .args(["experiment", "exp3", "--seconds", "3600", "--record"])
-        .arg(&file)
-        .arg("--out")
-        .arg(&out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
     // Recording, well into the run (the partial file has a chunk or more).
-    let started = Instant::now();
-    while std::fs::metadata(record::partial_path(&file)).map_or(0, |m| m.len()) < 2 << 20 {
-        assert!(started.elapsed() < Duration::from_secs(60), "no recording");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let child = recording_experiment("exp3", "3600", &file, &out, 2 << 20);
     let sent = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -152,24 +165,9 @@ fn ctrl_c_stops_an_experiment_and_finalises_its_recording() {
 /// not be closed (here: its final name taken, mid-run, by a directory) cost the run's report.
 #[test]
 fn a_recording_that_cannot_be_closed_still_leaves_the_runs_report() {
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
     let file = temp("taken.mcap");
     let out = temp("taken-out");
-    let child = Command::new(env!("CARGO_BIN_EXE_mmt"))
-        .args(["experiment", "exp1", "--seconds", "120", "--record"])
-        .arg(&file)
-        .arg("--out")
-        .arg(&out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let started = Instant::now();
-    while !record::partial_path(&file).exists() {
-        assert!(started.elapsed() < Duration::from_secs(60), "no recording");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let child = recording_experiment("exp1", "120", &file, &out, 1);
     std::fs::create_dir_all(file.join("in-the-way")).unwrap();
     let output = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
