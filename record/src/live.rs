@@ -75,6 +75,23 @@ struct Channel {
     id: u32,
     topic: String,
     schema: ChannelSchema,
+    /// A latched topic keeps its last message (log time, payload) for viewers who subscribe
+    /// after it was sent: the run's start and end, sent once.
+    last: Option<(u64, Bytes)>,
+    latched: bool,
+}
+
+/// The topics whose last message a new subscriber gets at once.
+const LATCHED: [&str; 2] = [crate::schema::topic::RUN, crate::schema::topic::RUN_END];
+
+/// A `messageData` frame: opcode 1, the subscription id, the log time, the payload.
+fn message_data(sub: u32, log_time_ns: u64, payload: &[u8]) -> Ws {
+    let mut bytes = Vec::with_capacity(13 + payload.len());
+    bytes.push(1);
+    bytes.extend_from_slice(&sub.to_le_bytes());
+    bytes.extend_from_slice(&log_time_ns.to_le_bytes());
+    bytes.extend_from_slice(payload);
+    Ws::Binary(Bytes::from(bytes))
 }
 
 /// A connected viewer as the publisher sees it.
@@ -167,6 +184,8 @@ impl LiveServer {
             id: reg.channels.len() as u32 + 1,
             topic: topic.to_owned(),
             schema: schema.clone(),
+            last: None,
+            latched: LATCHED.contains(&topic),
         };
         let advert = advertise(std::slice::from_ref(&channel));
         for client in &mut reg.clients {
@@ -185,16 +204,21 @@ impl LiveServer {
     /// queue is full misses it (counted).
     pub fn offer(&self, channel: u32, log_time_ns: u64, payload: &[u8]) {
         let mut reg = self.shared.registry();
+        if let Some(c) = reg
+            .channels
+            .iter_mut()
+            .find(|c| c.id == channel && c.latched)
+        {
+            c.last = Some((log_time_ns, Bytes::copy_from_slice(payload)));
+        }
         for client in &mut reg.clients {
             let Some(&sub) = client.subscriptions.get(&channel) else {
                 continue;
             };
-            let mut bytes = Vec::with_capacity(13 + payload.len());
-            bytes.push(1);
-            bytes.extend_from_slice(&sub.to_le_bytes());
-            bytes.extend_from_slice(&log_time_ns.to_le_bytes());
-            bytes.extend_from_slice(payload);
-            match client.queue.try_send(Ws::Binary(Bytes::from(bytes))) {
+            match client
+                .queue
+                .try_send(message_data(sub, log_time_ns, payload))
+            {
                 Ok(()) => {
                     self.shared.sent.fetch_add(1, Relaxed);
                 }
@@ -340,7 +364,11 @@ fn on_request(shared: &Shared, id: u64, text: &str) {
         return;
     };
     let mut reg = shared.registry();
-    let known: Vec<u32> = reg.channels.iter().map(|c| c.id).collect();
+    let known: Vec<(u32, Option<(u64, Bytes)>)> = reg
+        .channels
+        .iter()
+        .map(|c| (c.id, c.last.clone()))
+        .collect();
     let Some(client) = reg.clients.iter_mut().find(|c| c.id == id) else {
         return;
     };
@@ -353,9 +381,19 @@ fn on_request(shared: &Shared, id: u64, text: &str) {
         Some("subscribe") => {
             for s in v["subscriptions"].as_array().into_iter().flatten() {
                 if let (Some(sub), Some(channel)) = (number(s, "id"), number(s, "channelId"))
-                    && known.contains(&channel)
+                    && let Some((_, last)) = known.iter().find(|(c, _)| *c == channel)
                 {
                     client.subscriptions.insert(channel, sub);
+                    // A latched topic's last message, at once (dropped, counted, if full).
+                    if let Some((t, payload)) = last
+                        && client
+                            .queue
+                            .try_send(message_data(sub, *t, payload))
+                            .is_err()
+                    {
+                        client.dropped += 1;
+                        shared.dropped.fetch_add(1, Relaxed);
+                    }
                 }
             }
         }

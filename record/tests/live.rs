@@ -318,3 +318,46 @@ async fn scenes_go_out_at_display_rate_in_wall_time_however_fast_the_run() {
     );
     recorder.finish().unwrap();
 }
+
+/// Before: `/run` went out once, at the start: a viewer that came later never got the run's
+/// description (the Python viewer counted none). The run's start and end are latched: a new
+/// subscriber gets the last one at once.
+#[tokio::test]
+async fn a_late_viewer_gets_the_runs_start_when_it_subscribes() {
+    let recorder = start_live();
+    let sink = recorder.sink();
+    sink.send_one(0, Message::Run(Box::new(run_start(Side::Operator))));
+    sink.send(tick_batch(0, 100));
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut ws = connect(recorder.live_addr().unwrap(), "foxglove.websocket.v1")
+        .await
+        .unwrap();
+    let _ = next_json(&mut ws).await;
+    let advert = next_json(&mut ws).await;
+    let run = advert["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["topic"] == topic::RUN)
+        .unwrap()["id"]
+        .clone();
+    let subscribe = serde_json::json!({"op": "subscribe", "subscriptions": [
+        {"id": 5, "channelId": run},
+    ]});
+    ws.send(Ws::Text(subscribe.to_string().into()))
+        .await
+        .unwrap();
+    let got = loop {
+        let m = tokio::time::timeout(Duration::from_secs(5), ws.next())
+            .await
+            .expect("the run's start never came")
+            .unwrap()
+            .unwrap();
+        if let Ws::Binary(b) = m {
+            assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 5);
+            break serde_json::from_slice::<record::schema::RunStart>(&b[13..]).unwrap();
+        }
+    };
+    assert_eq!(got, run_start(Side::Operator));
+    recorder.finish().unwrap();
+}
