@@ -175,11 +175,18 @@ impl Recording {
         let experiment = run
             .filter(|r| !r.experiment.is_empty())
             .map_or(String::new(), |r| format!(" ({})", r.experiment));
-        let ticks = self.operator_ticks.len().max(self.telerobot_ticks.len());
+        // Its length from the ticks read, or else from the run ends' counts (a caller that
+        // skipped the tick topics), or not at all.
+        let read = self.operator_ticks.len().max(self.telerobot_ticks.len()) as u64;
+        let ticks = (read > 0)
+            .then_some(read)
+            .or_else(|| self.ends.iter().map(|e| e.ticks).max());
         let period = run.map_or(1_000_000, |r| r.period_ns.max(1));
-        let seconds = ticks as f64 * period as f64 * 1e-9;
+        let length = ticks.map_or(String::new(), |t| {
+            format!(", {:.1} s", t as f64 * period as f64 * 1e-9)
+        });
         format!(
-            "{} {} recording{experiment}{scene}, {seconds:.1} s, written by mmt {}",
+            "{} {} recording{experiment}{scene}{length}, written by mmt {}",
             if h.kind == Kind::Operator || h.kind == Kind::Experiment {
                 "an"
             } else {

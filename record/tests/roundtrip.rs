@@ -386,6 +386,19 @@ fn recordings_of_another_kind_or_version_are_refused_saying_what_they_are() {
     );
     assert!(e.contains("needs a telerobot recording"), "{e}");
     rec.require(&[Kind::Demo, Kind::Operator], "").unwrap();
+    // Before: read without its tick topics it said "0.0 s"; the run end has the count.
+    let runs_only = read(&path, &[topic::RUN, topic::RUN_END]).unwrap();
+    assert!(
+        runs_only.describe().contains("of scene exp1, 0.1 s"),
+        "{}",
+        runs_only.describe()
+    );
+    let start_only = read(&path, &[topic::RUN]).unwrap();
+    assert!(
+        !start_only.describe().contains(" s,"),
+        "{}",
+        start_only.describe()
+    );
 
     let other = temp("other.mcap");
     write_raw(&other, None);
