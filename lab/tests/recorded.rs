@@ -176,3 +176,51 @@ fn a_recording_that_cannot_be_closed_still_leaves_the_runs_report() {
     let report = std::fs::read_to_string(out.join("report.json")).unwrap();
     assert!(report.contains("rms_error_pct"), "{report}");
 }
+
+/// Before: `mmt estimate --from` built a node from the scene a recording's `/run` carried
+/// without checking it as a scene file is checked. A recording whose scene holds a NaN mass
+/// (written as `null`, read back as NaN) is now refused, naming the field.
+#[test]
+fn a_recorded_scene_is_checked_before_the_estimator_is_built_from_it() {
+    let path = temp("bad-scene.mcap");
+    let recorder = Recorder::start(RecorderConfig {
+        mcap: Some(path.clone()),
+        live: None,
+        kind: record::Kind::Telerobot,
+        clock_origin_ns: 0,
+    })
+    .unwrap();
+    let mut scene = Scene::exp1();
+    scene.environment.mass_kg = f64::NAN;
+    let run = record::schema::RunStart {
+        side: record::Side::Telerobot,
+        experiment: "telerobot".to_owned(),
+        start_ns: 0,
+        period_ns: 1_000_000,
+        scene_name: scene.name.clone(),
+        left_out: Vec::new(),
+        proxy_radii_m: [0.004, 0.006, 0.03],
+        device: None,
+        seed: Some(1),
+        set_delay_ms: None,
+        scene: Some(scene),
+        config: None,
+        axes: None,
+        tool_start_m: Some([0.0, 0.0, 0.01]),
+    };
+    let sink = recorder.sink();
+    sink.send_one(0, record::Message::Run(Box::new(run)));
+    let ticks = (0..10)
+        .map(|k| record::Timed {
+            t_ns: k * 1_000_000,
+            message: record::Message::TelerobotTick(Box::default()),
+        })
+        .collect();
+    assert!(sink.send(ticks));
+    recorder.finish().unwrap();
+    let e = estimate_from(&path, &EstimateFromConfig::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mass_kg"), "{e}");
+    assert!(e.contains("bad-scene.mcap"), "{e}");
+}

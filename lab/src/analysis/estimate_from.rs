@@ -113,6 +113,10 @@ pub fn estimate_from(
         .clone()
         .ok_or_else(|| invalid("the telerobot's /run does not say which scene ran".into()))?;
     apply(&mut scene, config).map_err(invalid)?;
+    // A file's scene is checked as a scene file is, before a node is built from it.
+    let scene = scene
+        .validated("the recording's /run")
+        .map_err(|e| invalid(e.to_string()))?;
     let settings = scene.telerobot_settings();
     let start = run
         .tool_start_m

@@ -416,6 +416,13 @@ impl Scene {
         Ok(scene)
     }
 
+    /// The scene, checked as [`Scene::from_toml`] checks a file's: for a scene that came from
+    /// elsewhere (a recording's `/run`). `origin` names the source in errors.
+    pub fn validated(self, origin: &str) -> Result<Scene, SceneError> {
+        self.validate().map_err(|e| e.with_origin(origin))?;
+        Ok(self)
+    }
+
     /// The built-in experiment-1 scene (`scenes/exp1.toml`).
     pub fn exp1() -> Scene {
         // The file is part of the crate; a failure here is a bug caught by the tests.
