@@ -79,16 +79,21 @@ fn the_estimator_replayed_on_a_recording_publishes_the_runs_parameters() {
     assert!(!other.same_as_recorded);
 }
 
-#[test]
-fn recordings_of_the_wrong_kind_are_refused_saying_what_they_are() {
-    let path = temp("telerobot.mcap");
-    let recorder = Recorder::start(RecorderConfig {
-        mcap: Some(path.clone()),
+/// A recorder of a telerobot recording to `path`.
+fn telerobot_recorder(path: &std::path::Path) -> Recorder {
+    Recorder::start(RecorderConfig {
+        mcap: Some(path.to_owned()),
         live: None,
         kind: record::Kind::Telerobot,
         clock_origin_ns: 0,
     })
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn recordings_of_the_wrong_kind_are_refused_saying_what_they_are() {
+    let path = temp("telerobot.mcap");
+    let recorder = telerobot_recorder(&path);
     recorder.finish().unwrap();
     let e = report_file(&path).unwrap_err().to_string();
     assert!(e.contains("telerobot"), "{e}");
@@ -183,13 +188,7 @@ fn a_recording_that_cannot_be_closed_still_leaves_the_runs_report() {
 #[test]
 fn a_recorded_scene_is_checked_before_the_estimator_is_built_from_it() {
     let path = temp("bad-scene.mcap");
-    let recorder = Recorder::start(RecorderConfig {
-        mcap: Some(path.clone()),
-        live: None,
-        kind: record::Kind::Telerobot,
-        clock_origin_ns: 0,
-    })
-    .unwrap();
+    let recorder = telerobot_recorder(&path);
     let mut scene = Scene::exp1();
     scene.environment.mass_kg = f64::NAN;
     let run = record::schema::RunStart {
