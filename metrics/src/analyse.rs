@@ -36,6 +36,10 @@ pub struct ContactLatency {
     pub local_max: Option<f64>,
     /// True contact changes counted.
     pub switches: usize,
+    /// True contact changes local detection did not follow within the 3 s matching window:
+    /// not in `local` or `local_max` (a first contact before the first cloud over a link of
+    /// seconds, say), so they are counted here.
+    pub local_missed: usize,
 }
 
 /// An error value over a window.
@@ -393,6 +397,7 @@ fn latency(s: &Series) -> ContactLatency {
         remote_only: mean(&r, false),
         local_max: l.iter().map(|x| x.abs()).reduce(f64::max),
         switches: truth.len(),
+        local_missed: truth.len() - l.len(),
     }
 }
 
@@ -477,5 +482,26 @@ mod nullable {
             .into_iter()
             .map(|(name, a, b, c)| (name, nan(a), nan(b), nan(c)))
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Before: a true switch that local detection followed only after more than 3 s (a first
+    /// contact before the first cloud over a 5 s link) was left out of the latency silently.
+    #[test]
+    fn a_switch_not_followed_within_3_s_is_counted_as_missed() {
+        let n = 10_000;
+        let mut s = Series::with_capacity(n, [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], 1_000_000);
+        // True contact from 1 s to 8 s; local from 4.5 s (3.5 s late) to 8.002 s.
+        s.contact_true = (0..n).map(|i| Some((1000..8000).contains(&i))).collect();
+        s.contact_local = (0..n).map(|i| (4500..8002).contains(&i)).collect();
+        s.contact_remote = vec![false; n];
+        let l = latency(&s);
+        assert_eq!((l.switches, l.local_missed), (2, 1), "{l:?}");
+        assert_eq!(l.local, Some(2.0));
+        assert_eq!(l.local_max, Some(2.0));
     }
 }

@@ -143,10 +143,14 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
         "~5 % (exp 2)",
     );
     let l = &r.contact_switch_latency_ms;
+    let missed = match l.local_missed {
+        0 => String::new(),
+        n => format!(" ({n} of {} switches not followed within 3 s)", l.switches),
+    };
     row(
         out,
         "contact switch latency, operator-side detection",
-        ms(l.local),
+        format!("{}{missed}", ms(l.local)),
         "—",
     );
     row(
