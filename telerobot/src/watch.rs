@@ -15,69 +15,56 @@ pub(crate) struct GuardLog {
 }
 
 impl GuardLog {
-    /// Logs what the guard did since the last snapshot, and returns it as events (for the
-    /// recording's `/events`).
+    /// Logs what the guard did since the last snapshot, and returns the same lines as events
+    /// (for the recording's `/events`).
     pub(crate) fn update(&mut self, s: &LoopSnapshot) -> Vec<(Level, String)> {
         let mut events = Vec::new();
         let (g, was) = (s.guard, self.logged);
+        let session = s.session;
         for (name, now, before) in [
             ("workspace box", g.workspace, was.workspace),
             ("largest step per tick", g.step, was.step),
             ("largest speed", g.speed, was.speed),
         ] {
             if now.episodes > before.episodes {
-                tracing::warn!(
-                    session = s.session,
-                    limit = name,
-                    episodes = now.episodes,
-                    ticks = now.ticks,
-                    "a motion limit clamped the commanded motion"
-                );
-                events.push((
+                tell(
+                    &mut events,
                     Level::Warning,
                     format!(
-                        "session {}: the {name} limit clamped the commanded motion \
+                        "session {session}: the {name} limit clamped the commanded motion \
                          (episode {}, {} ticks so far)",
-                        s.session, now.episodes, now.ticks
+                        now.episodes, now.ticks
                     ),
-                ));
+                );
             }
         }
         if g.faults > was.faults {
-            tracing::error!(
-                session = s.session,
-                faults = g.faults,
-                recovered = g.recovered,
-                "the robot's state was not finite: the bridge was reset"
-            );
-            events.push((
+            tell(
+                &mut events,
                 Level::Error,
                 format!(
-                    "session {}: the robot's state was not finite: the bridge was reset \
+                    "session {session}: the robot's state was not finite: the bridge was reset \
                      ({} faults, {} recovered)",
-                    s.session, g.faults, g.recovered
+                    g.faults, g.recovered
                 ),
-            ));
+            );
         }
         if g.stale_state.episodes > was.stale_state.episodes {
-            tracing::warn!(
-                session = s.session,
-                episodes = g.stale_state.episodes,
-                "no robot state for longer than 50 ms: holding the last commanded pose, \
-                 estimation paused until states return"
-            );
-            events.push((
+            tell(
+                &mut events,
                 Level::Warning,
                 format!(
-                    "session {}: no robot state for longer than 50 ms: holding the last \
-                     commanded pose, estimation paused (episode {})",
-                    s.session, g.stale_state.episodes
+                    "session {session}: no robot state for longer than 50 ms: holding the last \
+                     commanded pose, estimation paused until states return (episode {})",
+                    g.stale_state.episodes
                 ),
-            ));
+            );
         }
         if was.no_state_ticks == 0 && g.no_state_ticks > 0 {
-            tracing::info!(
-                "waiting for the robot's first state: nothing is commanded until it comes"
+            tell(
+                &mut events,
+                Level::Info,
+                "waiting for the robot's first state: nothing is commanded until it comes".into(),
             );
         }
         self.logged = g;
@@ -89,19 +76,15 @@ impl GuardLog {
     fn refusals(&mut self, s: &LoopSnapshot, events: &mut Vec<(Level, String)>) {
         let refused = s.node.implausible_commands;
         if refused > 0 && (s.session != self.implausible_session || self.implausible == 0) {
-            tracing::warn!(
-                session = s.session,
-                refused,
-                "commands refused: implausible playout time (their clock jumped)"
-            );
-            events.push((
+            tell(
+                events,
                 Level::Warning,
                 format!(
                     "session {}: {refused} commands refused: implausible playout time \
                      (their clock jumped)",
                     s.session
                 ),
-            ));
+            );
             self.implausible_session = s.session;
         }
         self.implausible = if s.session == self.implausible_session {
@@ -110,6 +93,16 @@ impl GuardLog {
             0
         };
     }
+}
+
+/// Logs `text` at `level` and keeps it as an event: one wording for the log and the recording.
+fn tell(events: &mut Vec<(Level, String)>, level: Level, text: String) {
+    match level {
+        Level::Error => tracing::error!("{text}"),
+        Level::Warning => tracing::warn!("{text}"),
+        Level::Info => tracing::info!("{text}"),
+    }
+    events.push((level, text));
 }
 
 /// Gaps in the commands, seen from the loop's snapshots (20 ms resolution).
