@@ -42,9 +42,7 @@ pub fn telerobot_on(
     }
 }
 
-/// The configuration [`telerobot`] starts the daemon with (on `listen`), for a test that
-/// changes something before it starts it.
-pub fn telerobot_config(
+fn telerobot_config(
     identity: &Identity,
     trusted: &[&Identity],
     delay_ms: f64,
@@ -122,7 +120,25 @@ pub fn through_shim(
     delay_ms: f64,
     seconds: f64,
 ) -> (Telerobot, ShimHandle, RunConfig) {
-    let tr = telerobot(&certs.telerobot, &[&certs.operator], delay_ms);
+    through_shim_with(certs, delay_ms, seconds, |_| {})
+}
+
+/// [`through_shim`], with `tweak` applied to the telerobot's configuration before it starts
+/// (a recorder, say).
+pub fn through_shim_with(
+    certs: &Certs,
+    delay_ms: f64,
+    seconds: f64,
+    tweak: impl FnOnce(&mut telerobot::RunConfig),
+) -> (Telerobot, ShimHandle, RunConfig) {
+    let mut config = telerobot_config(
+        &certs.telerobot,
+        &[&certs.operator],
+        delay_ms,
+        "127.0.0.1:0".parse().unwrap(),
+    );
+    tweak(&mut config);
+    let tr = Telerobot::start(config).unwrap();
     let shim = shim(tr.local_addr(), delay_ms);
     let config = operator_config(
         shim.local_addr(),

@@ -121,23 +121,9 @@ fn neither_loop_allocates_or_frees_while_both_sides_record() {
     };
     let tr_recorder = recorder("telerobot.mcap", record::Kind::Telerobot);
     let op_recorder = recorder("operator.mcap", record::Kind::Operator);
-    let mut tr_config = telerobot_config(
-        &certs.telerobot,
-        &[&certs.operator],
-        100.0,
-        "127.0.0.1:0".parse().unwrap(),
-    );
-    tr_config.record = Some(tr_recorder.sink());
-    let tr = telerobot::Telerobot::start(tr_config).unwrap();
-    let shim = shim(tr.local_addr(), 100.0);
-    let mut config = operator_config(
-        shim.local_addr(),
-        &certs.operator,
-        &certs.telerobot,
-        "alice",
-        10.0,
-        100.0,
-    );
+    let (tr, shim, mut config) = through_shim_with(&certs, 100.0, 10.0, |c| {
+        c.record = Some(tr_recorder.sink());
+    });
     config.record = Some(op_recorder.sink());
     let operator = spawn_operator(config);
     let running = allocations_once_running(&tr);
