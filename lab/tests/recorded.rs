@@ -136,16 +136,11 @@ fn recording_experiment(
 /// on any error (renamed into place, readable), writes no report and says where it stopped.
 #[test]
 fn ctrl_c_stops_an_experiment_and_finalises_its_recording() {
-    use std::process::Command;
     let file = temp("interrupted.mcap");
     let out = temp("interrupted-out");
     // Recording, well into the run (the partial file has a chunk or more).
     let child = recording_experiment("exp3", "3600", &file, &out, 2 << 20);
-    let sent = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(sent.success());
+    testkit::process::interrupt(&child);
     let output = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");
