@@ -584,9 +584,11 @@ pub use tap::{Tap, Tapped};
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
+    use super::*;
+
     #[test]
     fn the_ab_halves_are_counted_from_the_first_toggle_on() {
-        let mut ab = super::AbWindow::default();
+        let mut ab = AbWindow::default();
         // The start-up, recording: in neither half.
         assert!(!ab.counting(false));
         assert!(!ab.counting(false));
@@ -595,11 +597,9 @@ mod tests {
         assert!(ab.counting(true));
         assert!(ab.counting(false));
         // Never toggled (a recorder without --record-ab-s): never counted.
-        let mut never = super::AbWindow::default();
+        let mut never = AbWindow::default();
         assert!((0..10).all(|_| !never.counting(false)));
     }
-
-    use super::*;
 
     /// A square grid of `n × n` points of spacing `s` [m] on `z = 0`.
     fn grid(n: usize, s: f32) -> Vec<[f32; 3]> {

@@ -5,7 +5,7 @@
 //! A file cut short (a killed run: no summary, maybe half a chunk at the end) is read up to its
 //! last complete chunk; [`Recording::truncated`] says where and why reading stopped.
 
-use std::io::Read as _;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use mcap::read::Options;
@@ -66,7 +66,7 @@ pub enum ReadError {
     },
     /// One of ours, of this version, of a kind this build does not know.
     #[error(
-        "{path} is an mmt recording of an unknown kind '{kind}' (written by mmt {mmt_version}); this build knows operator, telerobot, demo and experiment recordings"
+        "{path} is an mmt recording of an unknown kind '{kind}' (written by mmt {mmt_version}); this build knows {known} recordings"
     )]
     UnknownKind {
         /// The file.
@@ -75,6 +75,8 @@ pub enum ReadError {
         kind: String,
         /// The mmt version that wrote it.
         mmt_version: String,
+        /// The kinds this build reads ([`Kind::ALL`]).
+        known: String,
     },
     /// One of ours, of a kind the caller cannot use.
     #[error("{path} is {what}; {needed}")]
@@ -210,12 +212,12 @@ pub fn read(path: &Path, topics: &[&str]) -> Result<Recording, ReadError> {
     let len = file.metadata().map_err(io)?.len();
     // The header and its metadata come first: a prefix is enough to say what the file is.
     let mut prefix = Vec::new();
-    std::io::Read::by_ref(&mut file)
+    file.by_ref()
         .take(HEADER_PREFIX)
         .read_to_end(&mut prefix)
         .map_err(io)?;
     let header = header(&prefix, &name)?;
-    let source = std::io::BufReader::new(std::io::Read::chain(prefix.as_slice(), file));
+    let source = std::io::BufReader::new(prefix.as_slice().chain(file));
     let mut rec = read_messages(Messages::new(source, len), header, &name, topics)?;
     rec.path = path.to_owned();
     Ok(rec)
@@ -238,7 +240,7 @@ const HEADER_PREFIX: u64 = 1 << 20;
 
 /// The messages of a file whose header is `header`, on `topics` (all if empty), into lists.
 fn read_messages(
-    messages: Messages<impl std::io::Read>,
+    messages: Messages<impl Read>,
     header: Header,
     name: &str,
     topics: &[&str],
@@ -329,6 +331,7 @@ fn parse_header(
             path: name.to_owned(),
             kind: field("kind"),
             mmt_version: field("mmt_version"),
+            known: Kind::ALL.map(Kind::name).join(", "),
         })?,
         mmt_version: field("mmt_version"),
         created_unix_ns: field("created_unix_ns").parse().unwrap_or(0),

@@ -1,10 +1,10 @@
 //! The 3-D scene at display rate, from the latest recorded state: the table and the object (when
 //! the scene is known; the object slides as the robot bridge says, and is drawn under the tool
 //! where each contact begins: the simulated object has no edges, so the drawn box is the part of
-//! it being touched, not its outline), the proxy sphere coloured
-//! by the contact state (green free, orange contact, red entrenched), the device's point, the
-//! force arrow and the surface frame's axes (`foxglove.SceneUpdate` on `/scene`, and
-//! `foxglove.FrameTransform` `world` → `surface` on `/tf`).
+//! it being touched, not its outline), the proxy sphere coloured by the contact state (green
+//! free, orange contact, red entrenched), the device's point, the force arrow and the surface
+//! frame's axes (`foxglove.SceneUpdate` on `/scene`, and `foxglove.FrameTransform` `world` →
+//! `surface` on `/tf`).
 //!
 //! The view is the operator's where the recording has an operator side (what the operator
 //! renders, on the cloud it received), the telerobot's otherwise (the measured tool and force).

@@ -4,7 +4,7 @@
 //! [cloud]                      # the simulated camera (default)
 //! source = "plane"             # plane | file | ros2 | none
 //! size_m = [0.3, 0.3]
-//! centre = "tool"             # tool | surface: where the window is centred
+//! centre = "tool"              # tool | surface: where the window is centred
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
 //! dropout = 0.0
@@ -54,9 +54,10 @@ pub struct CloudSource {
     /// `ros2`: `sensor_msgs/PointCloud2` from a camera driver; `none`: no cloud (contact from
     /// the true geometry on the telerobot, remote contact on the operator).
     pub source: CloudKind,
-    /// `plane`: the camera's window on the face, along the surface's two tangents, centred on
-    /// the tool [m]. It must cover the tool's motion over a round trip: at 400 ms each way and
-    /// 15 cm/s, 12 cm.
+    /// `plane`: the camera's window on the face, along the surface's two tangents [m], centred
+    /// as `centre` says. Centred on the tool, it must cover the tool's motion over a round trip
+    /// (at 400 ms each way and 15 cm/s, 12 cm); on the surface point, the workspace the tool
+    /// uses.
     pub size_m: [f64; 2],
     /// `plane`: where the window is centred: on the tool (a camera that follows it, as one on
     /// the wrist does), or on the scene's surface point (a camera fixed above the table; then

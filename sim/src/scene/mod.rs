@@ -401,11 +401,11 @@ impl Default for Rates {
 impl Scene {
     /// Parses and validates a scene. `origin` names the source in errors (a file name).
     pub fn from_toml(text: &str, origin: &str) -> Result<Scene, SceneError> {
-        let mut scene: Scene = toml::from_str(text).map_err(|e| SceneError::Parse {
+        let scene: Scene = toml::from_str(text).map_err(|e| SceneError::Parse {
             origin: origin.to_string(),
             message: e.to_string(),
         })?;
-        scene.validate().map_err(|e| e.with_origin(origin))?;
+        let mut scene = scene.validated(origin)?;
         let budget = scene.cloud.budget;
         scene
             .fit_cloud_budget(&budget)
