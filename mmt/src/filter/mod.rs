@@ -147,7 +147,13 @@ impl RegressorFilter {
     /// `f` [N] — and returns the filtered regression at this tick.
     #[inline]
     pub fn step(&mut self, x_m: f64, v_m_per_s: f64, f_n: f64) -> Regression {
-        let sigma = self.smooth_sign(v_m_per_s);
+        self.step_with_shape(x_m, f_n, self.smooth_sign(v_m_per_s))
+    }
+
+    /// As [`step`](Self::step), with the friction shape `σ` given (the friction force over its
+    /// level, e.g. from a model of the object) instead of the tool velocity's smooth sign.
+    #[inline]
+    pub fn step_with_shape(&mut self, x_m: f64, f_n: f64, sigma: f64) -> Regression {
         self.disc.advance(&mut self.states, [x_m, f_n, sigma]);
         self.regression()
     }
