@@ -7,8 +7,9 @@
 //! slides the tool's way. At realistic friction the object sticks at every reversal until the
 //! contact spring has taken up `2·Fc` — `2·Fc/k2`, several millimetres of tool travel — and the
 //! sign of the tool's velocity switches the friction a whole stick phase early. The regression
-//! then learns a different object (measured on class object 02 of `mmt benchmark --seed 1`, Fs
-//! 1.27 N: k2 +377 %, b2 −71 %, m −53 %, 19 % reconstruction error).
+//! then learns another object (measured on class object 02 of `mmt benchmark --seed 1`, Fs
+//! 1.27 N: k2 +73 %, b2 −73 %, Fc −25 %, 18 % reconstruction error; with the observer b2 +2 %,
+//! Fc −2 %, 3.8 %).
 //!
 //! [`FrictionObserver`] runs the object's mass on the measured contact force with the latest
 //! parameters that passed the gates, and the set-valued Coulomb law by implicit projection (the
