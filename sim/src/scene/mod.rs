@@ -122,7 +122,7 @@ pub struct LimitsSection {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Environment {
-    /// Object mass [kg] (exp 1: 1).
+    /// Object mass [kg] (exp 1: 1): 0 for an anchored object, else at least 0.001 (1 g).
     pub mass_kg: f64,
     /// Ground spring k1 [N/m] (exp 1: 0, free to slide).
     pub k_ground_n_per_m: f64,

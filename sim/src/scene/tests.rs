@@ -61,6 +61,13 @@ fn errors_name_the_field_the_value_and_the_range() {
             "environment.mass_kg",
             "-1.0",
         ),
+        // A subnormal mass passed as "> 0" and overflowed the simulation's 1/m.
+        (
+            "mass_kg = 1.0",
+            "mass_kg = 5e-324",
+            "environment.mass_kg",
+            "5e-324",
+        ),
         (
             "k_contact_n_per_m = 500.0",
             "k_contact_n_per_m = 0.0",
