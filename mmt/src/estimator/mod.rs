@@ -28,10 +28,12 @@
 
 mod confidence;
 mod friction;
+mod stats;
 
 use confidence::Confidence;
 pub use confidence::ConfidenceConfig;
 pub use friction::{FrictionObserver, ObservedObject};
+pub use stats::{EstimatorStats, RejectionCounts};
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
 use crate::model::backsolve::Confidence as BackSolveConfidence;
@@ -161,66 +163,6 @@ pub struct Update {
     pub rejection: Option<GateRejection>,
     /// The detector reported a new object this tick (the covariance was reset).
     pub new_object: bool,
-}
-
-/// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct EstimatorStats {
-    /// Samples with a non-finite value, dropped before the filters.
-    pub rejected_samples: u64,
-    /// Back-solves run.
-    pub back_solves: u64,
-    /// Back-solves rejected by a gate.
-    pub gate_rejections: u64,
-    /// Sets confirmed and published.
-    pub confirmed: u64,
-    /// Confirmed sets whose back-solve reported low confidence (`Confidence::Low`: e.g. k1 ≫ k2,
-    /// where noise on θ is amplified many times in φ). They are published like the others; the
-    /// count and [`Gated::confidence`] let reports say so.
-    pub low_confidence_confirmed: u64,
-    /// Back-solves rejected, by the gate that rejected them.
-    pub rejections: RejectionCounts,
-    /// Back-solves that passed every gate but not (yet) the confidence gate: withheld.
-    pub withheld: u64,
-    /// New-object resets.
-    pub new_objects: u64,
-    /// Onset resets (policy `EveryOnset`).
-    pub onset_resets: u64,
-}
-
-/// Back-solves rejected, per gate ([`GateRejection`]'s variants).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct RejectionCounts {
-    /// A coefficient or parameter not finite.
-    pub non_finite: u64,
-    /// A pole of F/X not in the open left half-plane.
-    pub not_eigen_stable: u64,
-    /// Stable but not passive.
-    pub not_passive: u64,
-    /// A physical parameter negative.
-    pub not_physical: u64,
-    /// θ too far off the model manifold.
-    pub residual: u64,
-    /// The back-solve refused (e.g. the mass not identifiable).
-    pub back_solve: u64,
-    /// A parameter not pinned down by the data.
-    pub not_identified: u64,
-}
-
-impl RejectionCounts {
-    /// Counts one rejection.
-    pub fn count(&mut self, r: &GateRejection) {
-        let c = match r {
-            GateRejection::NonFinite { .. } | GateRejection::Free => &mut self.non_finite,
-            GateRejection::NotEigenStable { .. } => &mut self.not_eigen_stable,
-            GateRejection::NotPassive { .. } => &mut self.not_passive,
-            GateRejection::NotPhysical { .. } => &mut self.not_physical,
-            GateRejection::Residual { .. } => &mut self.residual,
-            GateRejection::BackSolve(_) => &mut self.back_solve,
-            GateRejection::NotIdentified { .. } => &mut self.not_identified,
-        };
-        *c += 1;
-    }
 }
 
 /// An invalid estimator configuration.
