@@ -112,8 +112,11 @@ fn run_sim(
 /// so that the observer's law is the truth's and the figures are the estimator's alone. 60 s,
 /// for the 10 s memory to forget the data taken before the observer started (measured: worst
 /// parameter 3.2 % off with the observer, k2; 74 % with the tool's sign, b2).
-#[test]
-fn a_stick_phase_at_every_reversal_is_not_learnt_as_a_stiffer_lighter_object() {
+/// The worst relative error [%] of m, b1, k2, b2 and Fc after `seconds` on a high-friction
+/// object with pure Coulomb friction (`Fs = Fc`, so that the observer's law is the truth's and
+/// the figures are the estimator's alone): class object 02 of `mmt benchmark --seed 1` with
+/// Fc = 1 N.
+fn high_friction_worst_pct(friction_observer: bool, observer_discount: f64, seconds: f64) -> f64 {
     let object = Physical {
         mass_kg: 0.63,
         k_ground_n_per_m: 0.0,
@@ -128,27 +131,38 @@ fn a_stick_phase_at_every_reversal_is_not_learnt_as_a_stiffer_lighter_object() {
         noise: SensorNoise::FRANKA_LIKE,
         ..SimConfig::THESIS_EXP1
     };
-    let worst = |friction_observer: bool| {
-        let mut est = Estimator::new(EstimatorConfig {
-            friction_observer,
-            ..exp1_config()
-        })
-        .unwrap();
-        run_sim(&mut est, config, 60.0, |t| t >= 0.5, 1);
-        let p = est.latest().unwrap().sliding_mass().unwrap();
-        let rel = |got: f64, want: f64| 100.0 * (got / want - 1.0);
-        let errors = [
-            ("m", rel(p.mass_kg, object.mass_kg)),
-            ("b1", rel(p.b_ground_ns_per_m, object.b_ground_ns_per_m)),
-            ("k2", rel(p.k_contact_n_per_m, object.k_contact_n_per_m)),
-            ("b2", rel(p.b_contact_ns_per_m, object.b_contact_ns_per_m)),
-            ("Fc", rel(p.coulomb_n, object.coulomb_n)),
-        ];
-        eprintln!("friction observer {friction_observer}: {errors:.1?}");
-        errors.into_iter().map(|(_, e)| e.abs()).fold(0.0, f64::max)
-    };
-    let with = worst(true);
-    let without = worst(false);
+    let mut est = Estimator::new(EstimatorConfig {
+        friction_observer,
+        observer_discount,
+        ..exp1_config()
+    })
+    .unwrap();
+    run_sim(&mut est, config, seconds, |t| t >= 0.5, 1);
+    let p = est.latest().unwrap().sliding_mass().unwrap();
+    let rel = |got: f64, want: f64| 100.0 * (got / want - 1.0);
+    let errors = [
+        ("m", rel(p.mass_kg, object.mass_kg)),
+        ("b1", rel(p.b_ground_ns_per_m, object.b_ground_ns_per_m)),
+        ("k2", rel(p.k_contact_n_per_m, object.k_contact_n_per_m)),
+        ("b2", rel(p.b_contact_ns_per_m, object.b_contact_ns_per_m)),
+        ("Fc", rel(p.coulomb_n, object.coulomb_n)),
+    ];
+    eprintln!(
+        "observer {friction_observer}, discount {observer_discount}, {seconds} s: {errors:.1?}"
+    );
+    errors.into_iter().map(|(_, e)| e.abs()).fold(0.0, f64::max)
+}
+
+/// The cause of the high-friction objects' wrong models (issue 12): the friction columns took
+/// their shape from the sign of the tool's velocity, which switches the friction at every
+/// reversal while the object still sticks (until the contact spring has taken up `2·Fc`, here
+/// 4 mm of tool travel). The regression then learnt a stiffer, lighter object. The friction
+/// observer gives the columns the friction the object feels. 60 s, so that the data taken
+/// before the observer started are forgotten whatever the discount.
+#[test]
+fn a_stick_phase_at_every_reversal_is_not_learnt_as_a_stiffer_lighter_object() {
+    let with = high_friction_worst_pct(true, 1.0, 60.0);
+    let without = high_friction_worst_pct(false, 1.0, 60.0);
     assert!(
         with <= 10.0,
         "with the observer: worst parameter {with:.1} % off"
@@ -156,6 +170,20 @@ fn a_stick_phase_at_every_reversal_is_not_learnt_as_a_stiffer_lighter_object() {
     assert!(
         without >= 30.0,
         "the tool's sign: worst parameter only {without:.1} % off"
+    );
+}
+
+/// The data taken with the tool's sign before the observer started bias the estimate for as
+/// long as the memory keeps them (10 s here); the discount at the observer's start forgets them
+/// at once. Measured at 15 s: k2 71 % off with the discount against 113 % without (the rest
+/// is the observer's own start from a rough set, which the memory forgets).
+#[test]
+fn data_taken_before_the_friction_observer_started_are_forgotten_when_it_starts() {
+    let kept = high_friction_worst_pct(true, 1.0, 15.0);
+    let discounted = high_friction_worst_pct(true, 0.3, 15.0);
+    assert!(
+        discounted < 0.8 * kept,
+        "at 15 s: worst parameter {discounted:.1} % with the discount, {kept:.1} % without"
     );
 }
 
@@ -323,6 +351,19 @@ fn invalid_configuration_names_the_field() {
     match Estimator::new(c) {
         Err(EstimatorError::Field { field: "axes", .. }) => {}
         other => panic!("{other:?}"),
+    }
+    for bad in [0.0, -0.3, 1.5, f64::NAN] {
+        let c = EstimatorConfig {
+            observer_discount: bad,
+            ..exp1_config()
+        };
+        match Estimator::new(c) {
+            Err(EstimatorError::Field {
+                field: "observer_discount",
+                ..
+            }) => {}
+            other => panic!("{bad}: {other:?}"),
+        }
     }
     let mut c = exp1_config();
     c.confidence.window_s = -1.0;

@@ -279,6 +279,22 @@ impl Rls {
         }
     }
 
+    /// Forgets the data so far by `rho` at once (`D ← D/ρ`, and the output energy alike), as
+    /// `ln ρ / ln λ` updates of forgetting would, keeping θ̂: for data taken under a regressor
+    /// since corrected. Never past `tr P = n·p̄`, the bound the forgetting keeps. No effect unless
+    /// `0 < ρ < 1`.
+    pub fn discount(&mut self, rho: f64) {
+        if !(rho > 0.0 && rho < 1.0) {
+            return;
+        }
+        let bound = self.n as f64 * self.config.max_mean_variance;
+        let rho = rho.max(self.trace() / bound).min(1.0);
+        for d in &mut self.d[..self.n] {
+            *d /= rho;
+        }
+        self.out_energy *= rho;
+    }
+
     /// Mutes the new-object detector for the next `samples` updates (see [`Cusum::mute`]).
     pub fn mute_detector(&mut self, samples: u32) {
         self.cusum.mute(samples);

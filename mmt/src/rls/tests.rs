@@ -549,3 +549,65 @@ fn information_distance_is_the_added_squared_error_on_the_data() {
         assert!((rel - (want / energy).sqrt()).abs() < 1e-4 * rel);
     }
 }
+
+/// A discount by ρ between two blocks of data is least squares with the first block (and the
+/// prior) weighted by ρ: λ = 1, exact against the weighted batch solve.
+#[test]
+fn a_discount_is_least_squares_with_the_data_before_it_weighted() {
+    let cols = no_friction(true);
+    let data = typical_data(20.0);
+    let (before, after) = data.split_at(data.len() / 2);
+    let scales = typical_scales();
+    let (p0, rho) = (1e3, 0.3);
+    let mut rls = Rls::new(config(cols, scales, 1.0, p0)).unwrap();
+    learn_all(&mut rls, before);
+    rls.discount(rho);
+    learn_all(&mut rls, after);
+    let w = rho.sqrt();
+    let rows: Vec<_> = before
+        .iter()
+        .map(|r| r.psi.map(|v| v * w))
+        .chain(after.iter().map(|r| r.psi))
+        .collect();
+    let ys: Vec<_> = before
+        .iter()
+        .map(|r| r.y * w)
+        .chain(after.iter().map(|r| r.y))
+        .collect();
+    let want = batch_ls(&rows, &ys, cols, &scales.0, p0 / rho);
+    let err = active_rel_error(&rls.theta(), &want, cols);
+    assert!(
+        err < 1e-6,
+        "RLS with a discount against weighted batch LS: {err:e}"
+    );
+    // Without it the first block counts fully: a different answer.
+    let plain = batch_ls(
+        &data.iter().map(|r| r.psi).collect::<Vec<_>>(),
+        &data.iter().map(|r| r.y).collect::<Vec<_>>(),
+        cols,
+        &scales.0,
+        p0,
+    );
+    assert!(active_rel_error(&Theta(plain), &want, cols) > 1e3 * err.max(1e-12));
+}
+
+/// A discount never takes the covariance past the bound the forgetting keeps (`tr P ≤ n·p̄`),
+/// and a factor outside (0, 1) changes nothing.
+#[test]
+fn a_discount_is_bounded_and_garbage_factors_change_nothing() {
+    let cols = no_friction(true);
+    let data = typical_data(2.0);
+    let mut rls = Rls::new(config(cols, typical_scales(), 0.999, 1e3)).unwrap();
+    learn_all(&mut rls, &data);
+    let bits = state_bits(&rls);
+    for rho in [f64::NAN, 0.0, -0.5, 1.0, 2.0, f64::INFINITY] {
+        rls.discount(rho);
+        assert_eq!(state_bits(&rls), bits, "ρ = {rho}");
+    }
+    let theta = rls.theta();
+    let n = cols.indices().count() as f64;
+    rls.discount(1e-300);
+    assert!(rls.trace() <= n * 1e3 * (1.0 + 1e-12), "{}", rls.trace());
+    assert!(rls.trace() > n * 1e3 * (1.0 - 1e-9));
+    assert_eq!(rls.theta(), theta);
+}
