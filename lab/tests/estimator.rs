@@ -352,6 +352,22 @@ fn invalid_configuration_names_the_field() {
         Err(EstimatorError::Field { field: "axes", .. }) => {}
         other => panic!("{other:?}"),
     }
+    for bad in [-1.0, f64::NAN] {
+        let c = EstimatorConfig {
+            observer_wait_s: bad,
+            ..exp1_config()
+        };
+        assert!(
+            matches!(
+                Estimator::new(c),
+                Err(EstimatorError::Field {
+                    field: "observer_wait_s",
+                    ..
+                })
+            ),
+            "{bad}"
+        );
+    }
     for bad in [0.0, -0.3, 1.5, f64::NAN] {
         let c = EstimatorConfig {
             observer_discount: bad,
