@@ -58,7 +58,7 @@ fn spring_mounted_object_is_rendered_with_an_intercept_per_contact() {
 /// Seed 3's class object 07 (0.75 kg, k2 260 N/m, Fs 1.36 N) was never rendered: the tool's
 /// sign could not fit it well enough for the confidence gate, and the friction observer, which
 /// would, started only at the first confirmed set. It now also starts after
-/// `observer_wait_s` (2 s) of learning without one; measured: first render 4.0 s after contact.
+/// `observer_wait_s` (1 s) of learning without one; measured: first render 3.6 s after contact.
 #[test]
 fn an_object_the_tool_sign_cannot_confirm_is_rendered_after_the_observer_wait() {
     let config = BenchmarkConfig {
