@@ -92,15 +92,15 @@ pub struct EstimatorConfig {
     /// Take the friction columns' shape from a model of the object run on the measured force
     /// ([`FrictionObserver`]) instead of the tool velocity's sign, which switches the friction a
     /// whole stick phase early at every reversal. The observer runs the latest set that passed
-    /// the gates, from the model's first confirmed set on: the sets before it are rough, and
-    /// starting on them cost exp 1 two points of error in its first 5 s (measured; 7.7 against
-    /// 5.8 %). Default true; it acts on a structure with friction and no ground spring
-    /// ([`Estimator`]'s `observes_friction`).
+    /// the gates, from the model's first confirmed set on (or after `observer_wait_s` without
+    /// one): the sets before it are rough, and starting on them cost exp 1 two points of error
+    /// in its first 5 s (measured; 7.7 against 5.8 %). Default true; it acts on a structure with
+    /// friction and no ground spring ([`Estimator`]'s `observes_friction`).
     pub friction_observer: bool,
     /// When the friction observer starts, the data taken with the tool's sign before it are
     /// forgotten by this factor at once ([`Rls::discount`]; 0.3 is what 12 s of the exp-1 scene's
     /// 10 s memory would forget). In (0, 1]; 1 keeps them. Default 0.3: over `mmt benchmark`
-    /// seeds 1–3 it took the median error after stable from 4.1–6.6 % to 4.1–5.4 % and left
+    /// seeds 1–3 (measured before `observer_wait_s` existed) it took the median error after stable from 4.1–6.6 % to 4.1–5.4 % and left
     /// exp 1 and exp 3 within 0.01 points; its cost is up to 0.45 s more median time to stable at
     /// 400 ms (the parameters move once more after the first confirmed set). 0.1 gained more
     /// error (4.1–4.3 % at seeds 1–2) and cost more time (seed 2: 3.0 → 3.8 s).
