@@ -43,9 +43,6 @@ use crate::rls::{ColumnScales, Mode, Outcome, Rls, RlsConfig, RlsCounts, RlsErro
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Default [`EstimatorConfig::observer_wait_s`] [s].
-const OBSERVER_WAIT_S: f64 = 1.0;
-
 /// Most axes one estimator serves (the two tangential axes).
 pub const MAX_AXES: usize = 2;
 
@@ -138,7 +135,7 @@ impl EstimatorConfig {
             informed: true,
             friction_observer: true,
             observer_discount: 0.3,
-            observer_wait_s: OBSERVER_WAIT_S,
+            observer_wait_s: 1.0,
         }
     }
 }
@@ -339,11 +336,11 @@ impl Estimator {
                 // First sample: start the filter in the steady state instead of ringing from 0.
                 self.filters[i].reset_steady(s.position_m, s.velocity_m_per_s, f);
             }
-            let sign = self.filters[i].smooth_sign(s.velocity_m_per_s);
-            let shape = match self.observed {
-                Some(o) => self.observers[i].step(&o, f, dt).unwrap_or(sign),
-                None => sign,
-            };
+            let filter = &self.filters[i];
+            let shape = self
+                .observed
+                .and_then(|o| self.observers[i].step(&o, f, dt))
+                .unwrap_or_else(|| filter.smooth_sign(s.velocity_m_per_s));
             self.regressions[i] = self.filters[i]
                 .step_with_shape(s.position_m, f, shape)
                 .with_constant(i);
