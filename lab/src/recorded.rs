@@ -158,6 +158,7 @@ fn push_experiment_tick(series: &mut Series, op: &OperatorTick, tr: &TelerobotTi
         },
         in_contact,
         rendering: op.rendering,
+        reduced: op.reduced,
     };
     let out = output(op.force_rendered_n, op.in_contact);
     let remote = output(

@@ -106,7 +106,7 @@ fn error_panels(error_over_time: &[Window]) -> Vec<Panel> {
 }
 
 fn spectrum_panels(s: &Series) -> Vec<Panel> {
-    let after = s.rendering.iter().position(|r| *r).unwrap_or(0);
+    let after = s.whole_model_start().unwrap_or(0);
     let along = |v: [f64; 3]| vec3::dot(v, s.axis);
     let measured: Vec<f64> = (after..s.len())
         .map(|i| s.measured[i].map_or(0.0, along))

@@ -111,7 +111,8 @@ pub struct ExperimentReport {
     /// RMS error of the rendered force from the first contact to the end, % of the RMS measured
     /// force (force vectors, world frame).
     pub rms_error_pct: Option<f64>,
-    /// The same from the time the first parameters reach the operator.
+    /// The same from the time the first whole model reaches the operator (a reduced first
+    /// model, rendered before, does not start it).
     pub rms_error_pct_after_stable: Option<f64>,
     /// The same on the scene's second tangent only (the thesis's y axis).
     pub tangential_rms_error_pct_after_stable: Option<f64>,
@@ -126,7 +127,8 @@ pub struct ExperimentReport {
     pub error_over_time: Vec<Window>,
     /// From the first contact until the parameters pass every gate and keep passing [s].
     pub time_to_stable_s: Option<f64>,
-    /// From the first contact until the operator renders a model [s].
+    /// From the first contact until the operator renders a model (the telerobot's reduced first
+    /// model included) [s].
     pub render_start_s: Option<f64>,
     /// From the first tick of the operator's local contact to the first tick with a non-zero
     /// rendered force [ms] (0: the force starts on the tick contact does).
@@ -220,7 +222,7 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
     let rms_pct = |from: usize, rendered: &[[f64; 3]], proj: Option<[f64; 3]>| {
         rms_pct_vs(&s.measured, from, rendered, proj)
     };
-    let after = render_start.unwrap_or(s.len());
+    let after = s.whole_model_start().unwrap_or(s.len());
     ExperimentReport {
         experiment: info.experiment.clone(),
         scene: info.scene.clone(),

@@ -69,7 +69,7 @@ impl Series {
                 self.contact_true[i].map_or(-1, b),
                 b(self.contact_local[i]),
                 b(self.contact_remote[i]),
-                b(self.rendering[i]),
+                rendering_code(self.rendering[i], self.reduced.get(i).copied()),
                 t[0],
                 t[1],
                 t[2],
@@ -105,11 +105,23 @@ impl Series {
             };
             s.contact_local.push(row.integer(14)? == 1);
             s.contact_remote.push(row.integer(15)? == 1);
-            s.rendering.push(row.integer(16)? == 1);
+            let (rendering, reduced) = row.rendering(16)?;
+            s.rendering.push(rendering);
+            s.reduced.push(reduced);
             s.true_force[i] = row.optional_vector(17)?;
             s.operator_state.push([None; 2]);
         }
         Ok(s)
+    }
+}
+
+/// The `rendering` column: 0 no model, 1 a whole model, 2 the telerobot's reduced first model
+/// (files written before the reduced model read as 0 and 1).
+fn rendering_code(rendering: bool, reduced: Option<bool>) -> u8 {
+    match (rendering, reduced) {
+        (false, _) => 0,
+        (true, Some(true)) => 2,
+        (true, _) => 1,
     }
 }
 
@@ -201,6 +213,17 @@ impl<'a> Row<'a> {
         }
     }
 
+    /// The `rendering` column ([`rendering_code`]): whether a model renders, and whether it is
+    /// the reduced one.
+    fn rendering(&self, column: usize) -> Result<(bool, bool), CsvError> {
+        match self.cells[column] {
+            "0" => Ok((false, false)),
+            "1" => Ok((true, false)),
+            "2" => Ok((true, true)),
+            _ => Err(self.error(column, "0, 1 or 2")),
+        }
+    }
+
     /// -1, 0 or 1.
     fn integer(&self, column: usize) -> Result<i8, CsvError> {
         match self.cells[column] {
@@ -224,7 +247,8 @@ mod tests {
             s.rendered_remote.push([0.0; 3]);
             s.contact_local.push(k > 0);
             s.contact_remote.push(false);
-            s.rendering.push(k == 2);
+            s.rendering.push(k >= 1);
+            s.reduced.push(k == 1);
             s.operator_state.push([None; 2]);
         }
         s.measured[1] = Some([0.5, -1.0, 2.25]);
@@ -246,6 +270,8 @@ mod tests {
         assert_eq!(back.contact_true, s.contact_true);
         assert_eq!(back.contact_local, s.contact_local);
         assert_eq!(back.rendering, s.rendering);
+        assert_eq!(back.reduced, s.reduced);
+        assert_eq!(back.whole_model_start(), Some(2));
         assert_eq!(back.to_csv(), s.to_csv());
     }
 

@@ -24,6 +24,9 @@ pub struct Series {
     pub contact_remote: Vec<bool>,
     /// The operator renders a model.
     pub rendering: Vec<bool>,
+    /// The model the operator renders is the telerobot's reduced first model (massless), not
+    /// the whole structure.
+    pub reduced: Vec<bool>,
     /// Operator's contact deflection and mass velocity per tangent (sliding mass only).
     pub operator_state: Vec<[Option<(f64, f64)>; 2]>,
     /// Force on the tool the telerobot's sensor measured while executing the command of this
@@ -55,6 +58,7 @@ impl Series {
             contact_local: Vec::with_capacity(n),
             contact_remote: Vec::with_capacity(n),
             rendering: Vec::with_capacity(n),
+            reduced: Vec::with_capacity(n),
             operator_state: Vec::with_capacity(n),
             measured: vec![None; n],
             true_force: vec![None; n],
@@ -79,6 +83,14 @@ impl Series {
         self.contact_local.push(out.in_contact);
         self.contact_remote.push(remote.in_contact);
         self.rendering.push(out.rendering);
+        self.reduced.push(out.rendering && out.reduced);
+    }
+
+    /// The first tick the operator renders a whole model (not the reduced first model): where
+    /// the figures "after stable" start.
+    pub fn whole_model_start(&self) -> Option<usize> {
+        (0..self.rendering.len())
+            .position(|i| self.rendering[i] && !self.reduced.get(i).copied().unwrap_or(false))
     }
 
     /// Records what the telerobot measured while executing the command sampled at

@@ -11,7 +11,8 @@
 //!   to that tick and replaying the stored inputs to now;
 //! - **model start mid-contact** (§11.5): when the first (or a new) model arrives during a
 //!   contact, the episode is replayed from its onset with the new model instead of starting from
-//!   F = 0 now;
+//!   F = 0 now; the whole set that follows the telerobot's reduced first model (its massless
+//!   part, a sliding set with `m = 0`) is a new model in this sense;
 //! - **a prior** (issue 13): until the first model arrives, the normal axis renders a passive
 //!   spring–damper and the tangents a passive object ([`mmt::model::prior::Prior`]), so contact
 //!   is felt from its first tick. The first model takes over in a linear hand-over
@@ -19,6 +20,9 @@
 //!   the offset between the prior's force and the model's at the first model tick falls to 0
 //!   (the model's renderers run beside the prior's from the episode's onset, replayed at model
 //!   start, so their mass state is the model's own).
+
+mod stats;
+pub use stats::OperatorStats;
 
 use std::sync::Arc;
 
@@ -38,7 +42,7 @@ use crate::history::{AxisCorrection, Correction, History, Replay};
 use crate::settings::OperatorSettings;
 use crate::telerobot::NodeError;
 use crate::tracker::{ContactTracker, Tracked};
-use crate::wire::{gated_from_wire, surface_frame_from_wire};
+use crate::wire::{gated_from_wire, is_massless, surface_frame_from_wire};
 
 /// How the operator decides contact and keeps in step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -81,35 +85,9 @@ pub struct OperatorOutput {
     pub in_contact: bool,
     /// A model is being rendered.
     pub rendering: bool,
-}
-
-/// Counters for reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct OperatorStats {
-    /// Ticks stepped.
-    pub ticks: u64,
-    /// Parameter sets accepted (after the local gates).
-    pub parameter_sets: u64,
-    /// Parameter sets the local gates rejected.
-    pub parameter_rejections: u64,
-    /// Models started (first model, then each new model id).
-    pub models: u64,
-    /// Episode replays at model start, and the ticks they replayed.
-    pub model_replays: u64,
-    /// State syncs applied, and the ticks they replayed.
-    pub syncs: u64,
-    /// Ticks replayed by syncs and model starts.
-    pub replayed_ticks: u64,
-    /// State syncs ignored (not in contact, too old, or rate-limited).
-    pub syncs_skipped: u64,
-    /// Clouds received and indexed.
-    pub clouds: u64,
-    /// Clouds that could not be indexed.
-    pub rejected_clouds: u64,
-    /// Contact onsets.
-    pub contact_onsets: u64,
-    /// Ticks with a non-finite device reading (force 0).
-    pub rejected_inputs: u64,
+    /// The model rendered is the telerobot's reduced first model (the massless part of its
+    /// structure, published while the whole structure was not identified); false when none is.
+    pub reduced: bool,
 }
 
 /// The tangential renderer of one axis, by structure.
@@ -151,7 +129,8 @@ pub struct OperatorNode {
     /// The hand-over's length [ticks].
     handover_ticks: u32,
     episode_onset_ns: Option<i64>,
-    model_id: Option<u32>,
+    /// The model being rendered: its id, and whether it is the reduced (massless) stage.
+    model_id: Option<(u32, bool)>,
     rendering: bool,
     remote_in_contact: bool,
     last_sync_ns: Option<i64>,
@@ -298,8 +277,16 @@ impl OperatorNode {
         if !self.rendering {
             return;
         }
-        if self.model_id != Some(p.model_id) {
-            self.model_id = Some(p.model_id);
+        // The telerobot's reduced first model (its massless part, `EstimatorConfig::reduced_model`)
+        // is a stage of its own: the whole set that follows it starts its mass from the episode's
+        // replay like any new model, not from the massless model's state.
+        let reduced = match &p.tangential {
+            Some(set) => is_massless(set),
+            None => self.rendering_reduced(),
+        };
+        let stage = (p.model_id, reduced);
+        if self.model_id != Some(stage) {
+            self.model_id = Some(stage);
             self.stats.models += 1;
             if self.config.replay_on_model_start
                 && let Some(onset) = self.episode_onset_ns
@@ -373,6 +360,7 @@ impl OperatorNode {
                 command,
                 in_contact: false,
                 rendering: self.rendering,
+                reduced: self.rendering_reduced(),
             };
         }
         let tracked = self.contact(position_m);
@@ -417,6 +405,7 @@ impl OperatorNode {
             command,
             in_contact: tracked.in_contact,
             rendering: self.rendering,
+            reduced: self.rendering_reduced(),
         }
     }
 
@@ -463,6 +452,11 @@ impl OperatorNode {
                 self.prior_tangential = PriorStage::Done;
             }
         }
+    }
+
+    /// Whether the model rendered is the telerobot's reduced first model.
+    fn rendering_reduced(&self) -> bool {
+        self.rendering && self.model_id.is_some_and(|(_, reduced)| reduced)
     }
 
     /// Contact from the local proxy on the latest cloud, or from the telerobot's state.

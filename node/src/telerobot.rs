@@ -531,11 +531,20 @@ impl Observer {
         dt: f64,
     ) {
         let (k, b) = (p.k_contact_n_per_m, p.b_contact_ns_per_m);
-        if !in_contact || k <= 0.0 || b <= 0.0 || k.is_nan() || b.is_nan() {
+        let valid = k > 0.0 && k.is_finite() && b >= 0.0 && b.is_finite();
+        if !in_contact || !valid {
             *self = Observer::default();
             return;
         }
         let f_op = -force_on_tool;
+        if b == 0.0 {
+            // A pure spring contact (the estimator's reduced model can have one): the deflection
+            // is the force over the stiffness at once — the filter's b → 0 limit, in which the
+            // mass velocity is the tool's.
+            self.deflection_m = f_op / k;
+            self.mass_velocity_m_per_s = velocity;
+            return;
+        }
         if onset {
             // The contact starts unloaded with the object at rest (the renderer's convention).
             self.deflection_m = -b * velocity / k;
@@ -566,3 +575,7 @@ pub enum NodeError {
     #[error("the prior is not renderable: {0}")]
     PriorRejected(mmt::model::gates::GateRejection),
 }
+
+#[cfg(test)]
+#[path = "telerobot_tests.rs"]
+mod tests;

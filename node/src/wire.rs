@@ -70,6 +70,12 @@ pub fn parameter_set(g: &Gated, sample_time_ns: i64) -> Option<ParameterSet> {
     })
 }
 
+/// Whether a set is a sliding mass with no mass: the telerobot's reduced first model (its
+/// estimator never back-solves an exact zero mass for a whole set).
+pub fn is_massless(set: &ParameterSet) -> bool {
+    matches!(set.terms, ModelTerms::SlidingMass { mass_kg, .. } if mass_kg == 0.0)
+}
+
 /// Gates a received set again (defence in depth: the operator renders nothing it has not checked
 /// itself).
 pub fn gated_from_wire(set: &ParameterSet) -> Result<Gated, GateRejection> {

@@ -64,6 +64,9 @@ pub struct TickRecord {
     pub in_contact: bool,
     /// The node renders a model.
     pub rendering: bool,
+    /// The model rendered is the telerobot's reduced first model (massless), not the whole
+    /// structure.
+    pub reduced: bool,
     /// The node's local proxy \[m\], while it runs.
     pub proxy_m: Option<[f64; 3]>,
     /// The safety rules acting (`SafetyLayer::active_bits`).
@@ -233,6 +236,7 @@ impl HapticLoop {
             force_device_n: force,
             in_contact: out.in_contact,
             rendering: out.rendering,
+            reduced: out.reduced,
             proxy_m: self.node.proxy_m(),
             safety_bits: self.safety.active_bits(),
             device_faults: self.device.fault_count(),

@@ -360,6 +360,7 @@ impl Helper {
                 force_n: t.force_n,
                 in_contact: t.in_contact,
                 rendering: t.rendering,
+                reduced: t.reduced,
             };
             if let Some(tap) = &mut self.tap {
                 tap.tick(sample, t.parameters.as_ref().map(|(p, _)| p.model_id));
@@ -548,6 +549,7 @@ impl Forward {
             force_device_n: t.force_device_n,
             in_contact: t.in_contact,
             rendering: t.rendering,
+            reduced: t.reduced,
             proxy_m: t.proxy_m,
             safety,
             device_faults: t.device_faults,

@@ -24,6 +24,7 @@ fn batch(from: u64, to: u64, gain: f64, hole: std::ops::Range<u64>) -> Tapped {
             force_n: force(k).map(|f| f * gain),
             in_contact: true,
             rendering: true,
+            reduced: false,
         })
         .collect();
     let measurements = (from..to)

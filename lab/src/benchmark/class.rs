@@ -49,6 +49,22 @@ pub struct Object {
 }
 
 impl Object {
+    /// An object from `[m, k1, b1, k2, b2]` (SI) and its static friction `fs` [N], with the
+    /// class's Coulomb level `0.7·fs` and the ground spring declared when `k1 > 0`.
+    pub fn from_terms(name: &str, [m, k1, b1, k2, b2]: [f64; 5], fs: f64) -> Object {
+        Object {
+            name: name.to_string(),
+            mass_kg: m,
+            k_ground_n_per_m: k1,
+            b_ground_ns_per_m: b1,
+            k_contact_n_per_m: k2,
+            b_contact_ns_per_m: b2,
+            static_friction_n: fs,
+            coulomb_friction_n: round4(0.7 * fs),
+            ground_spring: k1 > 0.0,
+        }
+    }
+
     /// The object's contact mode `√((k1 + k2)/m)/2π` [Hz].
     pub fn mode_hz(&self) -> f64 {
         ((self.k_ground_n_per_m + self.k_contact_n_per_m) / self.mass_kg).sqrt()
@@ -157,15 +173,8 @@ fn round4(v: f64) -> f64 {
 /// - `exp1`: the thesis's object, for reference.
 pub fn corner_cases() -> Vec<Object> {
     let object = |name: &str, m, k1, b1, k2, b2, fs: f64, spring| Object {
-        name: name.to_string(),
-        mass_kg: m,
-        k_ground_n_per_m: k1,
-        b_ground_ns_per_m: b1,
-        k_contact_n_per_m: k2,
-        b_contact_ns_per_m: b2,
-        static_friction_n: fs,
-        coulomb_friction_n: round4(0.7 * fs),
         ground_spring: spring,
+        ..Object::from_terms(name, [m, k1, b1, k2, b2], fs)
     };
     let mu = |m: f64, mu: f64| round4(mu * m * GRAVITY_M_PER_S2);
     vec![

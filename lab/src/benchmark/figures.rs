@@ -34,6 +34,8 @@ pub struct CaseFigures {
     pub confirmed: u64,
     /// Confirmed sets of low confidence (e.g. k1 ≫ k2).
     pub low_confidence: u64,
+    /// Reduced (massless) sets confirmed and sent while the whole structure was not identified.
+    pub reduced: u64,
 }
 
 impl CaseFigures {
@@ -72,6 +74,7 @@ impl CaseFigures {
             withheld: sum(&|s| s.withheld),
             confirmed: sum(&|s| s.confirmed),
             low_confidence: sum(&|s| s.low_confidence_confirmed),
+            reduced: sum(&|s| s.reduced_confirmed),
         }
     }
 

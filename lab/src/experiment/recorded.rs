@@ -93,25 +93,7 @@ impl Recorded {
     /// One tick of both nodes.
     pub(super) fn tick(&mut self, t: &HarnessTick<'_>) {
         let at = t.now;
-        let operator = OperatorTick {
-            session: 0,
-            index: t.index,
-            sample_time_ns: at,
-            started_ns: at,
-            device_position_m: t.device.position_m,
-            device_velocity_m_per_s: t.device.velocity_m_per_s,
-            command_position_m: t.device.position_m,
-            command_velocity_m_per_s: t.device.velocity_m_per_s,
-            force_rendered_n: t.out.force_n,
-            force_device_n: t.out.force_n,
-            in_contact: t.out.in_contact,
-            rendering: t.out.rendering,
-            proxy_m: t.proxy_m,
-            remote_force_n: Some(t.remote.force_n),
-            remote_in_contact: Some(t.remote.in_contact),
-            tangential_state: t.operator_state.map(|s| s.map(|(a, b)| [a, b])),
-            ..OperatorTick::default()
-        };
+        let operator = operator_tick(t);
         self.push(at, Message::OperatorTick(Box::new(operator)));
         let tr = t.telerobot;
         let datagrams = tr.datagrams();
@@ -189,5 +171,30 @@ impl Recorded {
         };
         self.push(now, Message::RunEnd(Box::new(end)));
         self.flush();
+    }
+}
+
+/// The operator node's tick as the recording holds it.
+fn operator_tick(t: &HarnessTick<'_>) -> OperatorTick {
+    let at = t.now;
+    OperatorTick {
+        session: 0,
+        index: t.index,
+        sample_time_ns: at,
+        started_ns: at,
+        device_position_m: t.device.position_m,
+        device_velocity_m_per_s: t.device.velocity_m_per_s,
+        command_position_m: t.device.position_m,
+        command_velocity_m_per_s: t.device.velocity_m_per_s,
+        force_rendered_n: t.out.force_n,
+        force_device_n: t.out.force_n,
+        in_contact: t.out.in_contact,
+        rendering: t.out.rendering,
+        reduced: t.out.reduced,
+        proxy_m: t.proxy_m,
+        remote_force_n: Some(t.remote.force_n),
+        remote_in_contact: Some(t.remote.in_contact),
+        tangential_state: t.operator_state.map(|s| s.map(|(a, b)| [a, b])),
+        ..OperatorTick::default()
     }
 }

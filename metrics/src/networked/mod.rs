@@ -37,6 +37,10 @@ pub struct TickSample {
     pub in_contact: bool,
     /// The node renders a model.
     pub rendering: bool,
+    /// The model rendered is the telerobot's reduced first model (massless), not the whole
+    /// structure.
+    #[serde(default)]
+    pub reduced: bool,
 }
 
 /// A telerobot measurement as the operator received it.
@@ -207,6 +211,7 @@ pub fn series(
             },
             in_contact: r.in_contact,
             rendering: r.rendering,
+            reduced: r.reduced,
         };
         s.push_operator(r.position_m, &out, &out);
     }

@@ -42,14 +42,16 @@ pub struct ObservedObject {
 
 impl ObservedObject {
     /// The object's mass, ground damper and Coulomb level; `None` unless the object is free to
-    /// slide (`k1 = 0`), the mass positive, the damper non-negative, the friction above
+    /// slide (`k1 = 0`), the mass and the damper non-negative and not both 0 (a massless object, the
+    /// estimator's reduced model, slides at `(F_op − f)/b1`), the friction above
     /// [`MIN_FRICTION_N`] and all finite.
     pub fn new(p: &Physical) -> Option<ObservedObject> {
         (p.k_ground_n_per_m == 0.0
             && p.mass_kg.is_finite()
-            && p.mass_kg > 0.0
+            && p.mass_kg >= 0.0
             && p.b_ground_ns_per_m.is_finite()
             && p.b_ground_ns_per_m >= 0.0
+            && p.mass_kg + p.b_ground_ns_per_m > 0.0
             && p.coulomb_n.is_finite()
             && p.coulomb_n > MIN_FRICTION_N)
             .then_some(ObservedObject {
@@ -198,6 +200,22 @@ mod tests {
     }
 
     #[test]
+    fn a_massless_object_sticks_below_the_friction_level_and_slides_at_its_exact_rate_above() {
+        // The estimator's reduced model: m = 0, b1 = 5, Fc = 1. Below 1 N it holds; above, it
+        // slides at (F_op − Fc)/b1 from the very first step, either way round.
+        let o = object(0.0, 5.0, 1.0);
+        let mut obs = FrictionObserver::default();
+        assert_eq!(obs.step(&o, -0.4, H), Some(0.4));
+        assert_eq!(obs.velocity_m_per_s(), 0.0);
+        assert_eq!(obs.step(&o, -3.0, H), Some(1.0));
+        assert!((obs.velocity_m_per_s() - 0.4).abs() < 1e-12);
+        assert_eq!(obs.step(&o, 2.0, H), Some(-1.0));
+        assert!((obs.velocity_m_per_s() + 0.2).abs() < 1e-12);
+        assert_eq!(obs.step(&o, 1.0, H), Some(-1.0));
+        assert_eq!(obs.velocity_m_per_s(), 0.0);
+    }
+
+    #[test]
     fn garbage_parameters_and_forces_are_refused() {
         let p = Physical {
             mass_kg: 1.0,
@@ -208,7 +226,13 @@ mod tests {
             coulomb_n: 0.5,
         };
         for bad in [
-            Physical { mass_kg: 0.0, ..p },
+            // Massless and undamped: nothing fixes its velocity.
+            Physical {
+                mass_kg: 0.0,
+                b_ground_ns_per_m: 0.0,
+                ..p
+            },
+            Physical { mass_kg: -1.0, ..p },
             Physical {
                 mass_kg: f64::NAN,
                 ..p

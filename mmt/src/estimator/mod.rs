@@ -28,6 +28,7 @@
 
 mod confidence;
 mod friction;
+mod solve;
 mod stats;
 
 use confidence::Confidence;
@@ -36,8 +37,7 @@ pub use friction::{FrictionObserver, ObservedObject};
 pub use stats::{EstimatorStats, RejectionCounts};
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
-use crate::model::backsolve::Confidence as BackSolveConfidence;
-use crate::model::gates::{GateConfig, GateRejection, Gated, gate, gate_informed};
+use crate::model::gates::{GateConfig, GateRejection, Gated};
 use crate::model::{Structure, col};
 use crate::rls::{ColumnScales, Mode, Outcome, Rls, RlsConfig, RlsCounts, RlsError};
 use serde::{Deserialize, Serialize};
@@ -112,6 +112,15 @@ pub struct EstimatorConfig {
     /// 2.1–4.0 s and the median error after stable from 4.1–5.4 % to 3.9–4.9 %.
     /// `f64::INFINITY` waits for a confirmed set.
     pub observer_wait_s: f64,
+    /// Until a whole set has been confirmed, publish the structure's massless part when it
+    /// passes [`gate_massless`] and its own confidence gate: the motion may not excite the mass
+    /// (a slow probe, steps, a slow chirp) long after it has pinned down the springs, dampers
+    /// and friction, and the operator would meanwhile feel only the prior (issue 12, excitation
+    /// awareness). Such a set also starts the friction observer after `observer_wait_s`. It
+    /// never replaces a whole set, not even after a reset. The sets are marked
+    /// ([`Gated::is_reduced`]) and counted ([`EstimatorStats::reduced_confirmed`]). Default
+    /// true; it acts on sliding-mass structures with informed back-solves.
+    pub reduced_model: bool,
 }
 
 impl EstimatorConfig {
@@ -136,6 +145,7 @@ impl EstimatorConfig {
             friction_observer: true,
             observer_discount: 0.3,
             observer_wait_s: 1.0,
+            reduced_model: true,
         }
     }
 }
@@ -221,6 +231,9 @@ pub struct Estimator {
     next_back_solve_s: f64,
     ever_contact: bool,
     confidence: Confidence,
+    /// Boxed (allocated once, at construction): the ring is 28 kB, and estimators travel by value
+    /// inside the nodes.
+    reduced_confidence: Box<Confidence>,
     latest: Option<Gated>,
     observers: [FrictionObserver; MAX_AXES],
     observed: Option<ObservedObject>,
@@ -297,6 +310,10 @@ impl Estimator {
             next_back_solve_s: 0.0,
             ever_contact: false,
             confidence: Confidence::new(config.confidence, config.back_solve_period_s),
+            reduced_confidence: Box::new(Confidence::new(
+                config.confidence,
+                config.back_solve_period_s,
+            )),
             latest: None,
             observers: [FrictionObserver::default(); MAX_AXES],
             observed: None,
@@ -424,95 +441,13 @@ impl Estimator {
         // `reset` only fails for an invalid p0, which `new` already validated.
         let _ = self.rls.reset(self.config.initial_covariance);
         self.confidence.clear();
+        self.reduced_confidence.clear();
         self.observed = None;
         self.observers = [FrictionObserver::default(); MAX_AXES];
         self.confirmed_this_model = false;
         self.observer_started = false;
         self.learned_s = 0.0;
         self.model_id += 1;
-    }
-
-    fn back_solve(&mut self, update: &mut Update) {
-        self.stats.back_solves += 1;
-        let weights = self.weights();
-        let theta = self.rls.theta();
-        let svf = &self.config.filter.svf;
-        let correlation = 1.0 / (2.0 * svf.cutoff_hz * svf.sample_period_s);
-        let information = self
-            .rls
-            .information()
-            .filter(|_| self.config.informed)
-            .map(|i| i.with_correlation(correlation));
-        // The per-coefficient back-solve first: where it passes it is the more accurate on
-        // the parameters the motion barely excites (exp 1's mass: 1 % against 5 % informed).
-        // Where it fails — a spring-mounted object, stiff or heavy objects far from exp 1's
-        // scales — the informed one judges the set by the data instead.
-        let diagonal = gate(
-            self.config.structure,
-            &theta,
-            Some(&weights),
-            &self.config.gates,
-        );
-        let gated = match (&information, diagonal) {
-            (Some(info), Err(_)) => {
-                gate_informed(self.config.structure, &theta, info, &self.config.gates)
-            }
-            (_, d) => d,
-        };
-        match gated {
-            Ok(g) => {
-                let waited = self.learned_s >= self.config.observer_wait_s;
-                if self.observes_friction() && (self.confirmed_this_model || waited) {
-                    self.observed = g.sliding_mass().and_then(|p| ObservedObject::new(&p));
-                    if !self.observer_started && self.observed.is_some() {
-                        self.observer_started = true;
-                        self.rls.discount(self.config.observer_discount);
-                    }
-                }
-                let error = self.rls.relative_error();
-                if self.confidence.push(&g, error, information.as_ref()) {
-                    self.confirmed_this_model = true;
-                    self.latest = Some(g);
-                    self.stats.confirmed += 1;
-                    if matches!(g.confidence(), BackSolveConfidence::Low { .. }) {
-                        self.stats.low_confidence_confirmed += 1;
-                    }
-                    update.confirmed = Some(g);
-                } else {
-                    self.stats.withheld += 1;
-                }
-            }
-            Err(e) => {
-                self.stats.gate_rejections += 1;
-                self.stats.rejections.count(&e);
-                self.confidence.reject();
-                update.rejection = Some(e);
-            }
-        }
-    }
-
-    /// Whether the friction columns take their shape from the [`FrictionObserver`]: asked for,
-    /// and a structure with friction and no ground spring. With a ground spring the observer
-    /// would need where the spring rests, which it can only integrate open-loop; drift there made
-    /// four of the nine spring-mounted class objects of `mmt benchmark --seed 1` worse (one never
-    /// rendered), so those keep the tool's sign.
-    fn observes_friction(&self) -> bool {
-        let columns = self.config.structure.columns();
-        self.config.friction_observer && columns.contains(col::G) && !columns.contains(col::D)
-    }
-
-    /// Back-solve weights: the inverse standard deviations of θ̂ from the covariance, which are
-    /// only meaningful relative to each other.
-    fn weights(&self) -> [f64; crate::model::col::COUNT] {
-        let p = self.rls.covariance();
-        std::array::from_fn(|i| {
-            let var = p[(i, i)];
-            if var > 0.0 && var.is_finite() {
-                1.0 / var.sqrt()
-            } else {
-                0.0
-            }
-        })
     }
 
     /// The last confirmed set.

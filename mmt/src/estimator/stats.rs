@@ -18,6 +18,9 @@ pub struct EstimatorStats {
     /// where noise on θ is amplified many times in φ). They are published like the others; the
     /// count and [`Gated::confidence`] let reports say so.
     pub low_confidence_confirmed: u64,
+    /// Massless reduced sets confirmed and published while the whole structure was not
+    /// identified ([`super::EstimatorConfig::reduced_model`]); not in `confirmed`.
+    pub reduced_confirmed: u64,
     /// Back-solves rejected, by the gate that rejected them.
     pub rejections: RejectionCounts,
     /// Back-solves that passed every gate but not (yet) the confidence gate: withheld.

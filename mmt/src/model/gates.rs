@@ -16,7 +16,7 @@
 
 use super::backsolve::{
     BackSolveConfig, BackSolveError, BackSolved, Confidence, Information, Params, Spread,
-    back_solve, back_solve_informed,
+    back_solve, back_solve_informed, back_solve_massless,
 };
 use super::{KelvinVoigt, Physical, Structure, Theta, col};
 use serde::{Deserialize, Serialize};
@@ -56,12 +56,19 @@ impl Default for GateConfig {
 pub struct Gated {
     structure: Structure,
     solved: BackSolved,
+    /// Made by [`gate_massless`]: the structure's massless part, identified while the mass was not.
+    reduced: bool,
 }
 
 impl Gated {
     /// The model structure.
     pub fn structure(&self) -> Structure {
         self.structure
+    }
+    /// Whether this is the massless reduced model of its structure ([`gate_massless`]) rather
+    /// than the structure identified whole.
+    pub fn is_reduced(&self) -> bool {
+        self.reduced
     }
     /// The physical parameters.
     pub fn params(&self) -> Params {
@@ -176,7 +183,11 @@ pub fn gate(
         });
     }
     check_physical(&solved.params)?;
-    Ok(Gated { structure, solved })
+    Ok(Gated {
+        structure,
+        solved,
+        reduced: false,
+    })
 }
 
 /// Runs the gates on regression coefficients θ with the data's [`Information`]: finite, then
@@ -206,12 +217,6 @@ pub fn gate_informed(
     }
     let solved = back_solve_informed(structure, theta, information, &config.back_solve)
         .map_err(GateRejection::BackSolve)?;
-    if !(solved.residual <= config.max_residual) {
-        return Err(GateRejection::Residual {
-            residual: solved.residual,
-            max: config.max_residual,
-        });
-    }
     // A sliding mass always has a spread when informed; none means JᵀJ was singular: some
     // direction of the parameters is not seen by the data at all.
     let worst = match (solved.params, solved.spread) {
@@ -219,6 +224,24 @@ pub fn gate_informed(
         (Params::SlidingMass(_), None) => Some(("m", f64::INFINITY)),
         _ => None,
     };
+    accept_informed(structure, solved, worst, config, false)
+}
+
+/// The informed gates' common end: the residual within [`GateConfig::max_residual`], the worst
+/// parameter's spread (if it has one) within [`GateConfig::max_spread`], the set physical.
+fn accept_informed(
+    structure: Structure,
+    solved: BackSolved,
+    worst: Option<(&'static str, f64)>,
+    config: &GateConfig,
+    reduced: bool,
+) -> Result<Gated, GateRejection> {
+    if !(solved.residual <= config.max_residual) {
+        return Err(GateRejection::Residual {
+            residual: solved.residual,
+            max: config.max_residual,
+        });
+    }
     if let Some((parameter, spread)) = worst
         && !(spread <= config.max_spread)
     {
@@ -229,7 +252,32 @@ pub fn gate_informed(
         });
     }
     check_physical(&solved.params)?;
-    Ok(Gated { structure, solved })
+    Ok(Gated {
+        structure,
+        solved,
+        reduced,
+    })
+}
+
+/// Gates the massless set of a sliding-mass structure ([`back_solve_massless`]): the reduced
+/// model to render while the motion has not excited the mass enough for [`gate_informed`] to
+/// pass (issue 12, excitation awareness). θ̂'s own stability and passivity are not asked for —
+/// the unexcited mass directions are what make them fail — but the massless set must predict the
+/// data within [`GateConfig::max_residual`] (leaving the mass out costs that much at most), its
+/// parameters must be pinned down within [`GateConfig::max_spread`], and be physical. A set
+/// that passed is stable and passive by construction. [`Gated::is_reduced`] says it is one.
+/// A structure without a mass (not a sliding mass) has no massless part: [`GateRejection::Free`].
+pub fn gate_massless(
+    structure: Structure,
+    theta: &Theta,
+    information: &Information,
+    config: &GateConfig,
+) -> Result<Gated, GateRejection> {
+    let solved = back_solve_massless(structure, theta, information, &config.back_solve)
+        .ok_or(GateRejection::Free)?
+        .map_err(GateRejection::BackSolve)?;
+    let worst = solved.spread.map_or(("b1", f64::INFINITY), |s| s.worst());
+    accept_informed(structure, solved, Some(worst), config, true)
 }
 
 /// Gates a physical parameter set given directly (scene ground truth, stress tests, priors):
@@ -286,6 +334,7 @@ pub fn gate_physical(structure: Structure, params: &Params) -> Result<Gated, Gat
             confidence: Confidence::Identified,
             spread: None,
         },
+        reduced: false,
     })
 }
 

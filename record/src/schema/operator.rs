@@ -36,6 +36,10 @@ pub struct OperatorTick {
     pub in_contact: bool,
     /// The node renders a model.
     pub rendering: bool,
+    /// The model rendered is the telerobot's reduced first model (massless), not the whole
+    /// structure. Absent from recordings made before it: false.
+    #[serde(default)]
+    pub reduced: bool,
     /// The operator's local proxy \[m\] (`None` before a cloud).
     pub proxy_m: Option<[f64; 3]>,
     /// The safety rules acting this tick.
@@ -60,6 +64,7 @@ impl OperatorTick {
             force_n: self.force_rendered_n,
             in_contact: self.in_contact,
             rendering: self.rendering,
+            reduced: self.reduced,
         }
     }
 }

@@ -54,6 +54,7 @@ pub fn operator_tick(k: u64) -> OperatorTick {
         force_device_n: v3(k, 15),
         in_contact: k.is_multiple_of(3),
         rendering: k > 10,
+        reduced: k > 10 && k < 20,
         proxy_m: (!k.is_multiple_of(5)).then(|| v3(k, 18)),
         safety: SafetyFlags {
             bits: (k % 7) as u32,

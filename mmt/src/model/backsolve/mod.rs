@@ -198,6 +198,71 @@ pub fn back_solve_informed(
     solve(structure, theta, None, Some(information), config)
 }
 
+/// Recovers the massless set (`m = 0`: a first-order object) of a sliding-mass `structure` that
+/// predicts the data closest to θ̂, by the data's own [`Information`] as in
+/// [`back_solve_informed`]: the reduced model to render while the motion has not excited the
+/// mass (issue 12, excitation awareness). Its residual counts what leaving the mass out costs
+/// on the data. `None` for another structure.
+pub fn back_solve_massless(
+    structure: Structure,
+    theta: &Theta,
+    information: &Information,
+    config: &BackSolveConfig,
+) -> Option<Result<BackSolved, BackSolveError>> {
+    let Structure::SlidingMass {
+        ground_spring,
+        friction,
+    } = structure
+    else {
+        return None;
+    };
+    for i in structure.columns().indices() {
+        if !theta.0[i].is_finite() {
+            return Some(Err(BackSolveError::NonFinite {
+                name: col::NAMES[i],
+                value: theta.0[i],
+            }));
+        }
+    }
+    let problem = Problem::massless(
+        theta,
+        ground_spring,
+        friction,
+        information,
+        config.band_rad_s,
+    );
+    let best = problem
+        .massless_starts()
+        .map(|q| (problem.cost(&q), q))
+        .min_by(|x, y| x.0.total_cmp(&y.0));
+    let Some((_, start)) = best else {
+        return Some(Err(BackSolveError::NoCandidate));
+    };
+    let q = problem.levenberg_marquardt(start, config.max_iterations);
+    let fitted = problem.physical(&q);
+    let physical = problem.without_vanished(&q, fitted);
+    let spread = problem.spread(&q).map(|s| Spread {
+        mass: 0.0,
+        b_ground: s[1],
+        k_contact: s[2],
+        b_contact: s[3],
+        k_ground: if ground_spring { s[4] } else { 0.0 },
+    });
+    let condition = problem.condition(&q);
+    let confidence = if condition > config.max_condition {
+        Confidence::Low { condition }
+    } else {
+        Confidence::Identified
+    };
+    Some(Ok(BackSolved {
+        params: Params::SlidingMass(physical),
+        residual: problem.relative_residual(&q, &fitted),
+        condition,
+        confidence,
+        spread,
+    }))
+}
+
 fn solve(
     structure: Structure,
     theta: &Theta,

@@ -32,6 +32,8 @@ pub(super) struct Problem<'a> {
     rows: [usize; 6],
     n_rows: usize,
     pub(super) p: usize,
+    /// The first free entry of `q`: 1 for a massless problem, whose mass is held at 0.
+    first: usize,
     ground_spring: bool,
     friction: bool,
     band_rad_s: f64,
@@ -69,10 +71,69 @@ impl<'a> Problem<'a> {
             rows,
             n_rows,
             p: if ground_spring { 5 } else { 4 },
+            first: 0,
             ground_spring,
             friction,
             band_rad_s,
         }
+    }
+
+    /// The problem of the massless model (`m = 0`, a first-order object): the mass is held at 0
+    /// and left out of the fitted coefficients (`a`, `e`). Informed only: the data's information
+    /// says how much worse than θ̂ the massless set predicts them, the mass's excitation included.
+    pub(super) fn massless(
+        theta: &Theta,
+        ground_spring: bool,
+        friction: bool,
+        information: &'a Information,
+        band_rad_s: f64,
+    ) -> Self {
+        let mut problem = Problem::new(
+            theta,
+            ground_spring,
+            friction,
+            None,
+            Some(information),
+            band_rad_s,
+        );
+        problem.first = 1;
+        (problem.rows, problem.n_rows) = if ground_spring {
+            ([col::B, col::C, col::D, col::F, 0, 0], 4)
+        } else {
+            ([col::B, col::C, col::F, 0, 0, 0], 3)
+        };
+        problem
+    }
+
+    /// Start points of the massless problem, from magnitudes only: in the directions the motion
+    /// did not excite θ̂ can have any sign, and the informed fit pulls the start to the data. `b1`
+    /// from `|c|` (`c = b1` without a ground spring), ratios `b2/b1` of 0.1–10, `k2` from `|f|`
+    /// (`f = (b1 + b2)/S`) and a sweep of 10²–10⁴ N/m; with a ground spring, ratios `k1/k2` of
+    /// 0.1–10.
+    pub(super) fn massless_starts(&self) -> impl Iterator<Item = [f64; MAX_P]> + use<> {
+        let t = &self.theta;
+        let b1 = t[col::C].abs().max(1e-3);
+        let f = t[col::F].abs();
+        let mut out = [[f64::NAN; MAX_P]; 24];
+        let mut n = 0;
+        for ratio in [0.1, 1.0, 10.0] {
+            let b2 = ratio * b1;
+            for k2 in [(b1 + b2) / f, 1e2, 1e3, 1e4] {
+                for rho in if self.ground_spring {
+                    &[0.1, 1.0][..]
+                } else {
+                    &[0.0][..]
+                } {
+                    if n < out.len() {
+                        out[n] = [0.0, b1.ln(), k2.ln(), b2.ln(), (rho * k2).ln()];
+                        n += 1;
+                    }
+                }
+            }
+        }
+        let free = if self.ground_spring { 5 } else { 4 };
+        out.into_iter()
+            .filter(move |q| q[1..free].iter().all(|v| v.is_finite()))
     }
 
     /// Completes a candidate `k2` into a full start point (notes §2.2: `1/S` by LS over (B), (C),
@@ -122,7 +183,7 @@ impl<'a> Problem<'a> {
     /// The set of `q` without friction.
     fn linear(&self, q: &[f64; MAX_P]) -> Physical {
         Physical {
-            mass_kg: q[0].exp(),
+            mass_kg: if self.first > 0 { 0.0 } else { q[0].exp() },
             b_ground_ns_per_m: q[1].exp(),
             k_contact_n_per_m: q[2].exp(),
             b_contact_ns_per_m: q[3].exp(),
@@ -221,6 +282,7 @@ impl<'a> Problem<'a> {
                     jtj[i][j] = (0..n).map(|k| jac[k][i] * jac[k][j]).sum();
                 }
             }
+            self.hold_fixed(&mut jtj, &mut jtr);
             let mut improved = false;
             for _ in 0..12 {
                 let mut lhs = jtj;
@@ -253,13 +315,58 @@ impl<'a> Problem<'a> {
         q
     }
 
+    /// A held entry of `q` (a massless problem's mass) gets a unit diagonal and no gradient in
+    /// the normal equations: its step is 0 and the others' are those of the free problem.
+    fn hold_fixed(&self, jtj: &mut [[f64; MAX_P]; MAX_P], jtr: &mut [f64; MAX_P]) {
+        for (i, g) in jtr.iter_mut().enumerate().take(self.first) {
+            hold(jtj, i);
+            *g = 0.0;
+        }
+    }
+
+    /// Of a massless problem, the entries of `q` the fit drove to nothing: a damper below 10⁻⁶ of
+    /// the other damper, a spring below 10⁻⁶ of the other spring. The data cannot see them (their
+    /// log's Jacobian column vanishes with them), and what they contribute is nothing either way,
+    /// so their spread is not asked for: the reduced model leaves them out. A term driven to
+    /// infinity instead is not left out (it would matter beyond the data).
+    fn vanished(&self, q: &[f64; MAX_P]) -> [bool; MAX_P] {
+        let mut out = [false; MAX_P];
+        if self.first == 0 {
+            return out;
+        }
+        let tiny = 1e-6f64.ln();
+        // q = log [m, b1, k2, b2, k1]
+        out[1] = q[1] - q[3] < tiny;
+        out[3] = q[3] - q[1] < tiny;
+        if self.ground_spring {
+            out[4] = q[4] - q[2] < tiny;
+        }
+        out
+    }
+
+    /// `p` with the terms [`Self::vanished`] at `q` set to exactly 0, as they are rendered and
+    /// observed (a damper of 10⁻¹¹ N·s/m divides the contact observer's force by nothing).
+    pub(super) fn without_vanished(&self, q: &[f64; MAX_P], mut p: Physical) -> Physical {
+        let v = self.vanished(q);
+        if v[1] {
+            p.b_ground_ns_per_m = 0.0;
+        }
+        if v[3] {
+            p.b_contact_ns_per_m = 0.0;
+        }
+        if v[4] {
+            p.k_ground_n_per_m = 0.0;
+        }
+        p
+    }
+
     /// `∂r/∂q` by central differences, and the residual count.
     fn jacobian(&self, q: &[f64; MAX_P]) -> ([[f64; MAX_P]; MAX_R], usize) {
         let mut jac = [[0.0; MAX_P]; MAX_R];
         let step = 1e-6;
         let (mut rp, mut rm) = ([0.0; MAX_R], [0.0; MAX_R]);
-        let mut n = 0;
-        for j in 0..self.p {
+        let mut n = self.residuals(q, &mut rp);
+        for j in self.first..self.p {
             let (mut qp, mut qm) = (*q, *q);
             qp[j] += step;
             qm[j] -= step;
@@ -287,8 +394,16 @@ impl<'a> Problem<'a> {
                 jtj[i][j] = (0..n).map(|k| jac[k][i] * jac[k][j]).sum();
             }
         }
+        self.hold_fixed(&mut jtj, &mut [0.0; MAX_P]);
+        let vanished = self.vanished(q);
+        for (i, _) in vanished.iter().enumerate().filter(|(_, v)| **v) {
+            hold(&mut jtj, i);
+        }
         let mut out = [0.0; MAX_P];
-        for (i, o) in out.iter_mut().enumerate().take(p) {
+        for (i, o) in out.iter_mut().enumerate().take(p).skip(self.first) {
+            if vanished[i] {
+                continue;
+            }
             let mut e = [0.0; MAX_P];
             e[i] = 1.0;
             let col = cholesky_solve(&jtj, &e, p)?;
@@ -298,19 +413,20 @@ impl<'a> Problem<'a> {
     }
 
     /// Condition number of `∂ log θ/∂ log φ` (rows: fitted coefficients; columns: parameters).
-    /// Fixed-size matrices (the two shapes a problem has: 5 × 4, 6 × 5), so that the telerobot's
+    /// Fixed-size matrices (the shapes a problem has: 5 × 4, 6 × 5,
+    /// and 3 × 3, 4 × 4 massless), so that the telerobot's
     /// real-time loop, which back-solves, allocates nothing.
     pub(super) fn condition(&self, q: &[f64; MAX_P]) -> f64 {
         let base = self.model_theta(q);
         let step = 1e-6;
         let mut m = [[0.0; MAX_P]; 6];
-        for j in 0..self.p {
+        for j in self.first..self.p {
             let (mut qp, mut qm) = (*q, *q);
             qp[j] += step;
             qm[j] -= step;
             let (tp, tm) = (self.model_theta(&qp), self.model_theta(&qm));
             for (k, &i) in self.rows[..self.n_rows].iter().enumerate() {
-                m[k][j] = (tp[i].ln() - tm[i].ln()) / (2.0 * step);
+                m[k][j - self.first] = (tp[i].ln() - tm[i].ln()) / (2.0 * step);
             }
         }
         if !base.iter().all(|v| v.is_finite()) {
@@ -321,7 +437,17 @@ impl<'a> Problem<'a> {
                 (mx.max(s), mn.min(s))
             })
         };
-        let (max, min) = match (self.n_rows, self.p) {
+        let (max, min) = match (self.n_rows, self.p - self.first) {
+            (3, 3) => extremes(
+                nalgebra::SMatrix::<f64, 3, 3>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
+            (4, 4) => extremes(
+                nalgebra::SMatrix::<f64, 4, 4>::from_fn(|k, j| m[k][j])
+                    .singular_values()
+                    .as_slice(),
+            ),
             (5, 4) => extremes(
                 nalgebra::SMatrix::<f64, 5, 4>::from_fn(|k, j| m[k][j])
                     .singular_values()
@@ -395,6 +521,15 @@ pub(super) fn band_poly(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
 /// The size coefficient `i` would need to contribute as much as its whole polynomial at `w`.
 pub(super) fn band_scale(t: &[f64; col::COUNT], i: usize, w: f64) -> f64 {
     band_poly(t, i, w) / w.powi(ORDER[i])
+}
+
+/// Row and column `i` of `JᵀJ` zeroed and a unit diagonal: parameter `i` held where it is.
+fn hold(jtj: &mut [[f64; MAX_P]; MAX_P], i: usize) {
+    for row in jtj.iter_mut() {
+        row[i] = 0.0;
+    }
+    jtj[i] = [0.0; MAX_P];
+    jtj[i][i] = 1.0;
 }
 
 /// Solves `A x = b` for the leading `p×p` block of a symmetric positive-definite `A`.

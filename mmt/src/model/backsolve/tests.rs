@@ -256,3 +256,112 @@ fn ill_conditioned_sets_are_flagged_at_every_noise_level() {
         }
     }
 }
+
+/// The data's information of `structure`'s coefficients as an RLS with column scales `1/|θᵢ|`
+/// holds it after well-spread excitation: each scaled coefficient known to `sd` (relative),
+/// uncorrelated.
+fn information_about(structure: Structure, theta: &Theta, sd: f64) -> Information {
+    let cols: Vec<usize> = structure.columns().indices().collect();
+    let scale: Vec<f64> = cols
+        .iter()
+        .map(|&c| 1.0 / theta.0[c].abs().max(1e-3))
+        .collect();
+    let d = vec![sd * sd; cols.len()];
+    Information::new(&cols, &scale, |_, _| 0.0, &d, 100.0, 1e-4).unwrap()
+}
+
+/// A first-order object (`m = 0`) is recovered exactly by the massless back-solve, free to
+/// slide and spring-mounted, with no residual, its mass exactly 0 and its spread 0.
+#[test]
+fn massless_back_solve_recovers_a_first_order_object_exactly() {
+    let objects = [
+        (NO_K1, Physical::new(0.0, 0.0, 48.7, 357.0, 12.4, 0.69)),
+        (NO_K1, Physical::new(0.0, 0.0, 5.0, 3000.0, 90.0, 0.0)),
+        (WITH_K1, Physical::new(0.0, 350.0, 5.4, 690.0, 50.6, 0.89)),
+        (WITH_K1, Physical::new(0.0, 60.0, 70.0, 1100.0, 6.6, 1.0)),
+    ];
+    for (s, truth) in objects {
+        let theta = truth.theta().unwrap();
+        let info = information_about(s, &theta, 1e-3);
+        let got = back_solve_massless(s, &theta, &info, &BackSolveConfig::default())
+            .unwrap()
+            .unwrap();
+        let p = sliding(&got);
+        assert_eq!(p.mass_kg, 0.0);
+        let pairs = [
+            (truth.b_ground_ns_per_m, p.b_ground_ns_per_m),
+            (truth.k_contact_n_per_m, p.k_contact_n_per_m),
+            (truth.b_contact_ns_per_m, p.b_contact_ns_per_m),
+            (truth.k_ground_n_per_m, p.k_ground_n_per_m),
+            (truth.coulomb_n, p.coulomb_n),
+        ];
+        for (t, g) in pairs {
+            assert!((g - t).abs() <= 1e-5 * t.max(1.0), "{truth:?}: got {p:?}");
+        }
+        assert!(got.residual < 1e-6, "{}", got.residual);
+        assert_eq!(got.spread.unwrap().mass, 0.0);
+        assert!(got.condition.is_finite());
+    }
+}
+
+/// The massless fit of a massive object costs it a residual that grows with how much the mass
+/// matters in the data: small for the exp-1 object known only roughly, large when the data pin
+/// every coefficient down.
+#[test]
+fn massless_fit_of_a_massive_object_costs_what_the_mass_explains() {
+    let truth = Physical::THESIS_EXP1;
+    let theta = truth.theta().unwrap();
+    let config = BackSolveConfig::default();
+    let residual = |sd: f64| {
+        let info = information_about(NO_K1, &theta, sd);
+        back_solve_massless(NO_K1, &theta, &info, &config)
+            .unwrap()
+            .unwrap()
+            .residual
+    };
+    let (rough, sharp) = (residual(1.0), residual(1e-3));
+    assert!(sharp > 100.0 * rough, "rough {rough}, sharp {sharp}");
+    assert!(sharp > 1.0, "{sharp}");
+}
+
+/// A vanishing contact damper (the fit drives `b2` to nothing) is left out of the spread, not
+/// reported unidentified; garbage coefficients are errors; other structures have no massless
+/// part.
+#[test]
+fn massless_back_solve_on_degenerate_and_garbage_input() {
+    let truth = Physical::new(0.0, 0.0, 40.0, 800.0, 0.0, 0.5);
+    let mut theta = truth.theta().unwrap();
+    let info = information_about(
+        NO_K1,
+        &Physical::new(0.0, 0.0, 40.0, 800.0, 1.0, 0.5)
+            .theta()
+            .unwrap(),
+        1e-3,
+    );
+    let got = back_solve_massless(NO_K1, &theta, &info, &BackSolveConfig::default())
+        .unwrap()
+        .unwrap();
+    let p = sliding(&got);
+    assert!(p.b_contact_ns_per_m < 1e-4, "{p:?}");
+    assert!((p.k_contact_n_per_m - 800.0).abs() < 1e-3 * 800.0, "{p:?}");
+    let spread = got.spread.unwrap();
+    assert_eq!(spread.b_contact, 0.0);
+    assert!(spread.worst().1 < 0.5, "{spread:?}");
+    for bad in [f64::NAN, f64::INFINITY] {
+        theta.0[col::C] = bad;
+        let e = back_solve_massless(NO_K1, &theta, &info, &BackSolveConfig::default()).unwrap();
+        assert!(
+            matches!(e, Err(BackSolveError::NonFinite { name: "c", .. })),
+            "{e:?}"
+        );
+    }
+    assert!(
+        back_solve_massless(
+            Structure::KelvinVoigt,
+            &theta,
+            &info,
+            &BackSolveConfig::default()
+        )
+        .is_none()
+    );
+}

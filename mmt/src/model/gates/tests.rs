@@ -127,6 +127,56 @@ fn massless_given_model_passes_but_massless_data_does_not() {
     ));
 }
 
+/// The reduced model's gate: massless data pass it (marked reduced, and stable and passive as a
+/// given set), a set it cannot fit within the residual does not, nor does garbage; a structure
+/// without a mass has no massless part.
+#[test]
+fn massless_gate_passes_first_order_data_and_refuses_what_it_cannot_fit() {
+    let mut p = typical();
+    p.mass_kg = 0.0;
+    let theta = p.theta().unwrap();
+    let cols: Vec<usize> = FULL.columns().indices().collect();
+    let info = |theta: &Theta, sd: f64| {
+        let scale: Vec<f64> = cols
+            .iter()
+            .map(|&c| 1.0 / theta.0[c].abs().max(1e-3))
+            .collect();
+        Information::new(
+            &cols,
+            &scale,
+            |_, _| 0.0,
+            &vec![sd * sd; cols.len()],
+            100.0,
+            1e-4,
+        )
+        .unwrap()
+    };
+    let config = GateConfig::default();
+    let g = gate_massless(FULL, &theta, &info(&theta, 1e-3), &config).unwrap();
+    assert!(g.is_reduced());
+    let got = g.sliding_mass().unwrap();
+    assert_eq!(got.mass_kg, 0.0);
+    assert!((got.k_contact_n_per_m / p.k_contact_n_per_m - 1.0).abs() < 1e-5);
+    assert!(gate_physical(FULL, &g.params()).is_ok());
+    assert!(!gate_theta(&typical()).unwrap().is_reduced());
+    // The typical object's 0.5 kg, pinned down by the data, is far more than the residual allows.
+    let massive = typical().theta().unwrap();
+    assert!(matches!(
+        gate_massless(FULL, &massive, &info(&massive, 1e-3), &config),
+        Err(GateRejection::Residual { .. })
+    ));
+    let mut garbage = theta;
+    garbage.0[col::F] = f64::NAN;
+    assert!(matches!(
+        gate_massless(FULL, &garbage, &info(&theta, 1e-3), &config),
+        Err(GateRejection::BackSolve(_))
+    ));
+    assert_eq!(
+        gate_massless(Structure::KelvinVoigt, &theta, &info(&theta, 1e-3), &config),
+        Err(GateRejection::Free)
+    );
+}
+
 #[test]
 fn residual_gate_rejects_off_manifold_theta() {
     let mut t = typical().theta().unwrap();

@@ -1,0 +1,33 @@
+//! The operator node's counters.
+
+use serde::{Deserialize, Serialize};
+
+/// Counters for reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OperatorStats {
+    /// Ticks stepped.
+    pub ticks: u64,
+    /// Parameter sets accepted (after the local gates).
+    pub parameter_sets: u64,
+    /// Parameter sets the local gates rejected.
+    pub parameter_rejections: u64,
+    /// Models started (first model, then each new model id, and the whole set after a reduced
+    /// one).
+    pub models: u64,
+    /// Episode replays at model start, and the ticks they replayed.
+    pub model_replays: u64,
+    /// State syncs applied, and the ticks they replayed.
+    pub syncs: u64,
+    /// Ticks replayed by syncs and model starts.
+    pub replayed_ticks: u64,
+    /// State syncs ignored (not in contact, too old, or rate-limited).
+    pub syncs_skipped: u64,
+    /// Clouds received and indexed.
+    pub clouds: u64,
+    /// Clouds that could not be indexed.
+    pub rejected_clouds: u64,
+    /// Contact onsets.
+    pub contact_onsets: u64,
+    /// Ticks with a non-finite device reading (force 0).
+    pub rejected_inputs: u64,
+}
