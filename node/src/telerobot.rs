@@ -518,6 +518,8 @@ fn geometric_contact(settings: &TelerobotSettings, position_m: [f64; 3]) -> Cont
 struct Observer {
     deflection_m: f64,
     mass_velocity_m_per_s: f64,
+    /// The state follows the force (false after a reset: out of contact, no usable set).
+    running: bool,
 }
 
 impl Observer {
@@ -543,12 +545,20 @@ impl Observer {
             // mass velocity is the tool's.
             self.deflection_m = f_op / k;
             self.mass_velocity_m_per_s = velocity;
+            self.running = true;
             return;
         }
         if onset {
             // The contact starts unloaded with the object at rest (the renderer's convention).
             self.deflection_m = -b * velocity / k;
+        } else if !self.running {
+            // Started mid-contact (the first set arrived, or the set became usable): from the
+            // deflection the force holds, not from 0 — from 0 the first ticks read the whole
+            // force as damper force, a mass velocity of F/b2, and the first state sync carried
+            // it (1.06 m/s on the seed-1 class object 27 at 400 ms; −0.03 m/s from here).
+            self.deflection_m = f_op / k;
         }
+        self.running = true;
         // δ' = (F_op − k δ)/b, exact for F held over the tick.
         let decay = (-k * dt / b).exp();
         self.deflection_m = self.deflection_m * decay + (1.0 - decay) * f_op / k;

@@ -21,6 +21,18 @@ fn the_contact_observer_settles_at_the_spring_deflection() {
     assert!((obs.mass_velocity_m_per_s - 0.01).abs() < 1e-9, "{obs:?}");
 }
 
+/// Started in the middle of a contact (the first set arrives while the tool pushes), the
+/// observer starts from the deflection the force holds: the mass moves with the tool, not at
+/// `F/b2` (the first state sync carried 1.06 m/s).
+#[test]
+fn the_contact_observer_started_mid_contact_starts_from_the_held_deflection() {
+    let mut obs = Observer::default();
+    let p = contact(970.0, 4.4);
+    obs.step(&p, 0.01, -5.0, true, false, DT);
+    assert!((obs.deflection_m - 5.0 / 970.0).abs() < 1e-15, "{obs:?}");
+    assert!((obs.mass_velocity_m_per_s - 0.01).abs() < 1e-12, "{obs:?}");
+}
+
 /// A pure spring contact (`b2 = 0`, which the estimator's reduced model can publish) was read as
 /// no contact: the observer reset to zero deflection, and the state sync then pulled the
 /// operator's model to zero force (the seed-1 class objects 00 and 11 under a slow probe: 50 and
