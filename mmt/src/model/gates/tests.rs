@@ -177,6 +177,44 @@ fn massless_gate_passes_first_order_data_and_refuses_what_it_cannot_fit() {
     );
 }
 
+/// θ̂ off the passive set only in a direction the data did not excite (`b`, the `x″` column, at
+/// a slow motion: `Im Z(iω) < 0` somewhere) no longer blocks the physical set nearest to the data: that set is what
+/// renders, passive by construction. Asking θ̂ itself to be passive withheld it.
+#[test]
+fn an_unexcited_direction_making_theta_active_does_not_block_the_physical_set() {
+    let p = typical();
+    let truth = p.theta().unwrap();
+    let mut theta = truth;
+    theta.0[col::B] = 0.05 * truth.0[col::B];
+    let cols: Vec<usize> = FULL.columns().indices().collect();
+    let scale: Vec<f64> = cols.iter().map(|&c| 1.0 / truth.0[c].abs()).collect();
+    let sd: Vec<f64> = cols
+        .iter()
+        .map(|&c| if c == col::B { 1e4 } else { 1e-6 })
+        .collect();
+    let info = Information::new(&cols, &scale, |_, _| 0.0, &sd, 100.0, 1e-6).unwrap();
+    let config = GateConfig::default();
+    assert!(matches!(
+        check_theta(FULL, &theta, false),
+        Err(GateRejection::NotPassive { .. })
+    ));
+    let g = gate_informed(FULL, &theta, &info, &config).unwrap();
+    let got = g.sliding_mass().unwrap();
+    assert!((got.mass_kg / p.mass_kg - 1.0).abs() < 1e-3, "{got:?}");
+    assert!(
+        (got.k_contact_n_per_m / p.k_contact_n_per_m - 1.0).abs() < 1e-3,
+        "{got:?}"
+    );
+    let strict = GateConfig {
+        theta_checks: true,
+        ..config
+    };
+    assert!(matches!(
+        gate_informed(FULL, &theta, &info, &strict),
+        Err(GateRejection::NotPassive { .. })
+    ));
+}
+
 #[test]
 fn residual_gate_rejects_off_manifold_theta() {
     let mut t = typical().theta().unwrap();
