@@ -2,7 +2,8 @@
 //! Bierman U-D RLS update, for the 7-column exp-1 structure. Target ≤ 1 µs median per sample.
 //! And the whole [`Estimator::step`] as the telerobot calls it: finite check, tare, filters, RLS,
 //! and every 10 ms the back-solve, gates and confidence gate (amortised over the ticks), plus the
-//! same with a back-solve on every tick (the cost of a tick that back-solves).
+//! same with a back-solve on every tick (the cost of a tick that back-solves). And the whole
+//! set's informed back-solve beside the massless one (the reduced first model).
 //!
 //! Inputs are a recorded 10 s of the simulated exp-1 scene with Franka-like noise, replayed
 //! cyclically so every iteration sees a fresh, realistic sample.
@@ -16,6 +17,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use mmt::estimator::{AxisSample, Estimator, EstimatorConfig};
 use mmt::filter::{RegressorConfig, RegressorFilter};
 use mmt::model::Structure;
+use mmt::model::backsolve::{BackSolveConfig, back_solve_informed, back_solve_massless};
 use mmt::rls::{Mode, Rls, RlsConfig};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -162,5 +164,43 @@ fn estimator_step(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, estimator, estimator_step);
+/// The whole set's informed back-solve against the massless one the estimator adds while the
+/// whole set is not confirmed (both at the back-solve rate, 100 Hz, inside the 1 kHz loop), on
+/// the information of the first exp-1 period.
+fn back_solves(c: &mut Criterion) {
+    let (free, contact) = estimate_samples();
+    let mut est = full_estimator(0.01);
+    let samples = free.iter().map(|s| (s, false));
+    for (n, (s, in_contact)) in samples
+        .chain(contact[..20_000].iter().map(|s| (s, true)))
+        .enumerate()
+    {
+        est.step(n as f64 * 1e-3, &sample(s), in_contact);
+    }
+    let (structure, theta) = (est.config().structure, est.theta());
+    let info = est.information().unwrap();
+    let config = BackSolveConfig::default();
+    c.bench_function("back_solve_informed (exp-1, whole set)", |b| {
+        b.iter(|| {
+            black_box(back_solve_informed(
+                structure,
+                black_box(&theta),
+                &info,
+                &config,
+            ))
+        })
+    });
+    c.bench_function("back_solve_massless (exp-1, reduced set)", |b| {
+        b.iter(|| {
+            black_box(back_solve_massless(
+                structure,
+                black_box(&theta),
+                &info,
+                &config,
+            ))
+        })
+    });
+}
+
+criterion_group!(benches, estimator, estimator_step, back_solves);
 criterion_main!(benches);
