@@ -365,7 +365,7 @@ impl<'a> Problem<'a> {
         let mut jac = [[0.0; MAX_P]; MAX_R];
         let step = 1e-6;
         let (mut rp, mut rm) = ([0.0; MAX_R], [0.0; MAX_R]);
-        let mut n = self.residuals(q, &mut rp);
+        let mut n = 0;
         for j in self.first..self.p {
             let (mut qp, mut qm) = (*q, *q);
             qp[j] += step;
