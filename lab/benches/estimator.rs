@@ -133,25 +133,28 @@ fn estimate_samples() -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
     (free, contact)
 }
 
+/// [`full_estimator`] tared out of contact and run over the first exp-1 period in contact: past
+/// its guard and confident. Returns it, the samples it took, and the second period's samples.
+fn warmed_estimator(back_solve_period_s: f64) -> (Estimator, u64, Vec<[f64; 3]>) {
+    let (free, mut contact) = estimate_samples();
+    let data = contact.split_off(20_000);
+    let mut est = full_estimator(back_solve_period_s);
+    let mut n = 0u64;
+    let samples = free.iter().map(|s| (s, false));
+    for (s, in_contact) in samples.chain(contact.iter().map(|s| (s, true))) {
+        est.step(n as f64 * 1e-3, &sample(s), in_contact);
+        n += 1;
+    }
+    assert!(est.is_confident(), "not confident after warm-up");
+    (est, n, data)
+}
+
 fn estimator_step(c: &mut Criterion) {
-    let (free, contact) = estimate_samples();
-    let (first_period, data) = contact.split_at(20_000);
     for (name, period) in [
         ("Estimator::step (exp-1, back-solve every 10 ms)", 0.01),
         ("Estimator::step (exp-1, back-solve every tick)", 1e-3),
     ] {
-        let mut est = full_estimator(period);
-        // Tare out of contact, then the first period in contact: past the guard, confident.
-        let mut n = 0u64;
-        for (s, in_contact) in free
-            .iter()
-            .map(|s| (s, false))
-            .chain(first_period.iter().map(|s| (s, true)))
-        {
-            est.step(n as f64 * 1e-3, &sample(s), in_contact);
-            n += 1;
-        }
-        assert!(est.is_confident(), "{name}: not confident after warm-up");
+        let (mut est, mut n, data) = warmed_estimator(period);
         let mut k = 0;
         c.bench_function(name, |b| {
             b.iter(|| {
@@ -168,15 +171,7 @@ fn estimator_step(c: &mut Criterion) {
 /// whole set is not confirmed (both at the back-solve rate, 100 Hz, inside the 1 kHz loop), on
 /// the information of the first exp-1 period.
 fn back_solves(c: &mut Criterion) {
-    let (free, contact) = estimate_samples();
-    let mut est = full_estimator(0.01);
-    let samples = free.iter().map(|s| (s, false));
-    for (n, (s, in_contact)) in samples
-        .chain(contact[..20_000].iter().map(|s| (s, true)))
-        .enumerate()
-    {
-        est.step(n as f64 * 1e-3, &sample(s), in_contact);
-    }
+    let (est, _, _) = warmed_estimator(0.01);
     let (structure, theta) = (est.config().structure, est.theta());
     let info = est.information().unwrap();
     let config = BackSolveConfig::default();

@@ -130,7 +130,7 @@ pub struct OperatorNode {
     handover_ticks: u32,
     episode_onset_ns: Option<i64>,
     /// The model being rendered: its id, and whether it is the reduced (massless) stage.
-    model_id: Option<(u32, bool)>,
+    model_stage: Option<(u32, bool)>,
     rendering: bool,
     remote_in_contact: bool,
     last_sync_ns: Option<i64>,
@@ -187,7 +187,7 @@ impl OperatorNode {
             prior_axes,
             handover_ticks: r.handover_ticks(),
             episode_onset_ns: None,
-            model_id: None,
+            model_stage: None,
             rendering: false,
             remote_in_contact: false,
             last_sync_ns: None,
@@ -285,8 +285,8 @@ impl OperatorNode {
             None => self.rendering_reduced(),
         };
         let stage = (p.model_id, reduced);
-        if self.model_id != Some(stage) {
-            self.model_id = Some(stage);
+        if self.model_stage != Some(stage) {
+            self.model_stage = Some(stage);
             self.stats.models += 1;
             if self.config.replay_on_model_start
                 && let Some(onset) = self.episode_onset_ns
@@ -456,7 +456,7 @@ impl OperatorNode {
 
     /// Whether the model rendered is the telerobot's reduced first model.
     fn rendering_reduced(&self) -> bool {
-        self.rendering && self.model_id.is_some_and(|(_, reduced)| reduced)
+        self.rendering && self.model_stage.is_some_and(|(_, reduced)| reduced)
     }
 
     /// Contact from the local proxy on the latest cloud, or from the telerobot's state.

@@ -216,13 +216,8 @@ pub fn back_solve_massless(
     else {
         return None;
     };
-    for i in structure.columns().indices() {
-        if !theta.0[i].is_finite() {
-            return Some(Err(BackSolveError::NonFinite {
-                name: col::NAMES[i],
-                value: theta.0[i],
-            }));
-        }
+    if let Err(e) = check_finite(structure, theta) {
+        return Some(Err(e));
     }
     let problem = Problem::massless(
         theta,
@@ -241,24 +236,13 @@ pub fn back_solve_massless(
     let q = problem.levenberg_marquardt(start, config.max_iterations);
     let fitted = problem.physical(&q);
     let physical = problem.without_vanished(&q, fitted);
-    let spread = problem.spread(&q).map(|s| Spread {
-        mass: 0.0,
-        b_ground: s[1],
-        k_contact: s[2],
-        b_contact: s[3],
-        k_ground: if ground_spring { s[4] } else { 0.0 },
-    });
+    let spread = problem.spread(&q).map(|s| spread_of(&s, ground_spring));
     let condition = problem.condition(&q);
-    let confidence = if condition > config.max_condition {
-        Confidence::Low { condition }
-    } else {
-        Confidence::Identified
-    };
     Some(Ok(BackSolved {
         params: Params::SlidingMass(physical),
         residual: problem.relative_residual(&q, &fitted),
         condition,
-        confidence,
+        confidence: confidence_of(condition, config),
         spread,
     }))
 }
@@ -270,16 +254,7 @@ fn solve(
     information: Option<&Information>,
     config: &BackSolveConfig,
 ) -> Result<BackSolved, BackSolveError> {
-    let cols = structure.columns();
-    for i in cols.indices() {
-        let v = theta.0[i];
-        if !v.is_finite() {
-            return Err(BackSolveError::NonFinite {
-                name: col::NAMES[i],
-                value: v,
-            });
-        }
-    }
+    check_finite(structure, theta)?;
     match structure {
         Structure::Free => Ok(BackSolved {
             params: Params::Free,
@@ -352,30 +327,55 @@ fn sliding_mass(
     let physical = problem.physical(&q);
     // With the data's information the spread says how well the mass is known; without, the
     // band decides whether it can be seen at all.
-    let spread = problem.spread(&q).map(|s| Spread {
-        mass: s[0],
-        b_ground: s[1],
-        k_contact: s[2],
-        b_contact: s[3],
-        k_ground: if ground_spring { s[4] } else { 0.0 },
-    });
+    let spread = problem.spread(&q).map(|s| spread_of(&s, ground_spring));
     let visibility = mass_visibility(&physical, config.band_rad_s);
     if information.is_none() && !(visibility >= config.min_mass_visibility) {
         return Err(not_identifiable(visibility));
     }
     let condition = problem.condition(&q);
-    let confidence = if condition > config.max_condition {
-        Confidence::Low { condition }
-    } else {
-        Confidence::Identified
-    };
     Ok(BackSolved {
         params: Params::SlidingMass(physical),
         residual: problem.relative_residual(&q, &physical),
         condition,
-        confidence,
+        confidence: confidence_of(condition, config),
         spread,
     })
+}
+
+/// Every coefficient the structure has is finite.
+fn check_finite(structure: Structure, theta: &Theta) -> Result<(), BackSolveError> {
+    match structure
+        .columns()
+        .indices()
+        .find(|&i| !theta.0[i].is_finite())
+    {
+        Some(i) => Err(BackSolveError::NonFinite {
+            name: col::NAMES[i],
+            value: theta.0[i],
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The spread of each parameter from the log-parameters' standard deviations `s` (the
+/// problem's order `m, b1, k2, b2, k1`; a massless problem's mass has 0).
+fn spread_of(s: &[f64; problem::MAX_P], ground_spring: bool) -> Spread {
+    Spread {
+        mass: s[0],
+        b_ground: s[1],
+        k_contact: s[2],
+        b_contact: s[3],
+        k_ground: if ground_spring { s[4] } else { 0.0 },
+    }
+}
+
+/// Low confidence beyond [`BackSolveConfig::max_condition`].
+fn confidence_of(condition: f64, config: &BackSolveConfig) -> Confidence {
+    if condition > config.max_condition {
+        Confidence::Low { condition }
+    } else {
+        Confidence::Identified
+    }
 }
 
 /// `|∂ log(F/X)/∂ log m| = |m (iω)² Z2 / (Z1 (Z1 + Z2))|`, the largest over the band.
