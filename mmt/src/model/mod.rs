@@ -20,6 +20,7 @@
 pub mod backsolve;
 pub mod gates;
 pub mod prior;
+pub mod select;
 
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};

@@ -16,7 +16,8 @@
 //! are judged alike (issue 12: scale-aware gates). With the factor `P = U D Uᵀ` (`U` unit upper
 //! triangular, Bierman's form), `δᵀ P⁻¹ δ = |D^{−½} U⁻¹ δ|²`: one back substitution.
 
-use super::super::col;
+use super::super::{Columns, col};
+use nalgebra::{SMatrix, SVector};
 
 const N: usize = col::COUNT;
 
@@ -115,6 +116,40 @@ impl Information {
     /// output [1].
     pub fn relative(&self, delta: &[f64; N]) -> f64 {
         (self.distance2(delta) / self.output_energy).sqrt()
+    }
+
+    /// `θ̂_Oᵀ P_OO⁻¹ θ̂_O` [N²]: how much worse the data the estimate came from are predicted when
+    /// the coefficients `omitted` are held at 0 and the others refitted — least squares on the
+    /// same forgotten data, so it is the constrained fit's extra squared error, exactly (the
+    /// prior's small pull aside). `P_OO` is the omitted coefficients' block of the covariance
+    /// (the others, and the constant columns, marginalised out). Columns not in the information
+    /// cost nothing. `None` when a number is not finite or the block is not positive definite.
+    pub fn omission_cost(&self, theta: &[f64; N], omitted: Columns) -> Option<f64> {
+        let mut rows = [0; N];
+        let mut m = 0;
+        for k in (0..self.n).filter(|&k| omitted.contains(self.cols[k])) {
+            rows[m] = k;
+            m += 1;
+        }
+        let rows = &rows[..m];
+        // Identity outside the omitted block, zero right-hand side: one fixed-size factor.
+        let mut p = SMatrix::<f64, N, N>::identity();
+        let mut v = SVector::<f64, N>::zeros();
+        let unit = |a: usize, j: usize| if a == j { 1.0 } else { self.u[a][j] };
+        for (i, &a) in rows.iter().enumerate() {
+            v[i] = theta[self.cols[a]] * self.scale[a];
+            for (l, &b) in rows.iter().enumerate() {
+                // (U D Uᵀ)_ab = Σ_{j ≥ max(a, b)} u_aj d_j u_bj.
+                p[(i, l)] = (a.max(b)..self.n)
+                    .map(|j| unit(a, j) * self.d[j] * unit(b, j))
+                    .sum();
+            }
+        }
+        if !(p.iter().all(|x| x.is_finite()) && v.iter().all(|x| x.is_finite())) {
+            return None;
+        }
+        let cost = v.dot(&p.cholesky()?.solve(&v));
+        cost.is_finite().then_some(cost.max(0.0))
     }
 
     /// `Σₖ λᵏ yₖ²` [N²].
