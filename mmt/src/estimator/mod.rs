@@ -121,6 +121,18 @@ pub struct EstimatorConfig {
     /// ([`Gated::is_reduced`]) and counted ([`EstimatorStats::reduced_confirmed`]). Default
     /// true; it acts on sliding-mass structures with informed back-solves.
     pub reduced_model: bool,
+    /// Choose, at every back-solve, which structure inside `structure` the data support
+    /// ([`crate::model::select`]: the Bayesian information criterion on the RLS's own fit, and
+    /// whether the terms left out could be felt), and back-solve, gate and publish that one: a
+    /// spring-mounted scene's ground spring, or its friction, is left out for an object that
+    /// does not need it. Sliding-mass structures with informed back-solves only. The RLS keeps
+    /// identifying the whole structure (narrowing it to the chosen columns, exactly, was
+    /// measured and was worse: a light spring-mounted object's basin flipped), and the chosen
+    /// structure is back-solved from it as the whole one is: per coefficient first (which
+    /// ignores the left-out coefficients), then by the data's information (which holds them at
+    /// 0). The choice is reported ([`EstimatorStats::selected`]). Default false: the scene's
+    /// structure.
+    pub select_structure: bool,
 }
 
 impl EstimatorConfig {
@@ -146,6 +158,7 @@ impl EstimatorConfig {
             observer_discount: 0.3,
             observer_wait_s: 1.0,
             reduced_model: true,
+            select_structure: false,
         }
     }
 }
@@ -241,6 +254,11 @@ pub struct Estimator {
     observer_started: bool,
     learned_s: f64,
     model_id: u32,
+    /// The structure back-solved and published: `config.structure`, or the one selection chose
+    /// inside it.
+    structure: Structure,
+    /// A structure selection chose that is not in use yet, and for how many back-solves in a row.
+    pending: Option<(Structure, u32)>,
     stats: EstimatorStats,
 }
 
@@ -321,6 +339,8 @@ impl Estimator {
             observer_started: false,
             learned_s: 0.0,
             model_id: 0,
+            structure: config.structure,
+            pending: None,
             stats: EstimatorStats::default(),
             config,
         })
@@ -374,6 +394,7 @@ impl Estimator {
         let mut detected = false;
         for i in 0..n {
             let r = self.regressions[i];
+
             if let Outcome::Updated {
                 new_object: true, ..
             } = self.rls.update(&r.psi, r.y, mode)
@@ -440,6 +461,7 @@ impl Estimator {
     fn start_new_model(&mut self) {
         // `reset` only fails for an invalid p0, which `new` already validated.
         let _ = self.rls.reset(self.config.initial_covariance);
+
         self.confidence.clear();
         self.reduced_confidence.clear();
         self.observed = None;
@@ -448,6 +470,8 @@ impl Estimator {
         self.observer_started = false;
         self.learned_s = 0.0;
         self.model_id += 1;
+        self.structure = self.config.structure;
+        self.pending = None;
     }
 
     /// The last confirmed set.
@@ -504,6 +528,12 @@ impl Estimator {
     /// RLS counters.
     pub fn rls_counts(&self) -> RlsCounts {
         self.rls.counts()
+    }
+
+    /// The structure back-solved and published: the configured one, or the one selection
+    /// chose inside it ([`EstimatorConfig::select_structure`]).
+    pub fn structure(&self) -> Structure {
+        self.structure
     }
 
     /// The configuration.

@@ -6,11 +6,12 @@ use super::{Estimator, ObservedObject, Update};
 use crate::model::backsolve::Confidence as BackSolveConfidence;
 use crate::model::backsolve::Information;
 use crate::model::gates::{Gated, gate, gate_informed, gate_massless};
-use crate::model::{Structure, Theta, col};
+use crate::model::{Structure, Theta, col, select};
 
 impl Estimator {
     pub(super) fn back_solve(&mut self, update: &mut Update) {
         self.stats.back_solves += 1;
+        self.select_structure();
         let weights = self.weights();
         let theta = self.rls.theta();
         let svf = &self.config.filter.svf;
@@ -24,16 +25,10 @@ impl Estimator {
         // the parameters the motion barely excites (exp 1's mass: 1 % against 5 % informed).
         // Where it fails — a spring-mounted object, stiff or heavy objects far from exp 1's
         // scales — the informed one judges the set by the data instead.
-        let diagonal = gate(
-            self.config.structure,
-            &theta,
-            Some(&weights),
-            &self.config.gates,
-        );
+        let structure = self.structure;
+        let diagonal = gate(structure, &theta, Some(&weights), &self.config.gates);
         let gated = match (&information, diagonal) {
-            (Some(info), Err(_)) => {
-                gate_informed(self.config.structure, &theta, info, &self.config.gates)
-            }
+            (Some(info), Err(_)) => gate_informed(structure, &theta, info, &self.config.gates),
             (_, d) => d,
         };
         match gated {
@@ -80,14 +75,14 @@ impl Estimator {
     /// ([`EstimatorConfig::reduced_model`]).
     fn reduce(&mut self, theta: &Theta, information: Option<&Information>, update: &mut Update) {
         let Some(info) = information else { return };
-        let sliding = matches!(self.config.structure, Structure::SlidingMass { .. });
+        let sliding = matches!(self.structure, Structure::SlidingMass { .. });
         // Never in place of a whole set: after a reset (mostly the detector's false alarms on the
         // same object) the last whole set renders better than the massless part of the new one.
         let whole = self.latest.is_some_and(|g| !g.is_reduced());
         if !(self.config.reduced_model && sliding) || whole {
             return;
         }
-        match gate_massless(self.config.structure, theta, info, &self.config.gates) {
+        match gate_massless(self.structure, theta, info, &self.config.gates) {
             Ok(g) => {
                 self.observe(&g);
                 // Judged by its own fit (the massless gate's residual) and by holding still, not
@@ -111,8 +106,64 @@ impl Estimator {
     /// four of the nine spring-mounted class objects of `mmt benchmark --seed 1` worse (one never
     /// rendered), so those keep the tool's sign.
     fn observes_friction(&self) -> bool {
-        let columns = self.config.structure.columns();
+        let columns = self.structure.columns();
         self.config.friction_observer && columns.contains(col::G) && !columns.contains(col::D)
+    }
+
+    /// Scores the structures inside the configured one on the current estimate and takes the
+    /// choice once it has held for [`select::DWELL_S`] of back-solves in a row. The penalty
+    /// counts the independent samples behind θ̂: the time learnt, capped by the forgetting's
+    /// memory, times the filter's two samples per cut-off period, on each axis.
+    fn select_structure(&mut self) {
+        let selects = self.config.select_structure
+            && self.config.informed
+            && matches!(self.config.structure, Structure::SlidingMass { .. });
+        if !selects {
+            return;
+        }
+        let svf = &self.config.filter.svf;
+        let correlation = 1.0 / (2.0 * svf.cutoff_hz * svf.sample_period_s);
+        let Some(info) = self
+            .rls
+            .information()
+            .map(|i| i.with_correlation(correlation))
+        else {
+            return;
+        };
+        let dt = svf.sample_period_s;
+        let lambda = self.config.forgetting;
+        let memory_s = if lambda < 1.0 {
+            dt * (1.0 - lambda.powf(self.learned_s / dt)) / (1.0 - lambda)
+        } else {
+            self.learned_s
+        };
+        let samples = memory_s * 2.0 * svf.cutoff_hz * self.config.axes as f64;
+        let theta = self.rls.theta();
+        let Some(selection) = select::select(self.config.structure, &theta, &info, samples) else {
+            return;
+        };
+        let next = selection.next(self.structure);
+        self.stats.selected = Some(self.structure);
+        if next == self.structure {
+            self.pending = None;
+            return;
+        }
+        let seen = match self.pending {
+            Some((s, n)) if s == next => n + 1,
+            _ => 1,
+        };
+        self.pending = Some((next, seen));
+        if f64::from(seen) * self.config.back_solve_period_s < select::DWELL_S {
+            return;
+        }
+        self.structure = next;
+        self.pending = None;
+        self.stats.selected = Some(next);
+        self.stats.structure_changes += 1;
+        if !self.observes_friction() {
+            // The observer ran a model of the structure left: its shape is not this one's.
+            self.observed = None;
+        }
     }
 
     /// Back-solve weights: the inverse standard deviations of θ̂ from the covariance, which are

@@ -1,5 +1,6 @@
 //! The estimator's counters, for reports.
 
+use crate::model::Structure;
 use crate::model::gates::GateRejection;
 use serde::{Deserialize, Serialize};
 
@@ -29,6 +30,14 @@ pub struct EstimatorStats {
     pub new_objects: u64,
     /// Onset resets (policy `EveryOnset`).
     pub onset_resets: u64,
+    /// The structure chosen from the data at the last back-solve
+    /// ([`super::EstimatorConfig::select_structure`]); `None` when selection is off or has not
+    /// run.
+    #[serde(default)]
+    pub selected: Option<Structure>,
+    /// Times the structure in use changed by selection.
+    #[serde(default)]
+    pub structure_changes: u64,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).

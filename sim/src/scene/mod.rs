@@ -34,6 +34,7 @@
 //! friction = true
 //! filter_cutoff_hz = 5.0
 //! forgetting = 0.9999
+//! select_structure = false    # optional: choose k1 and friction from the data (issue 12 item 5)
 //! [proxy]
 //! r1_m = 0.004
 //! r2_m = 0.006
@@ -195,6 +196,12 @@ pub struct ModelSection {
     pub filter_cutoff_hz: f64,
     /// RLS forgetting factor per 1 ms tick.
     pub forgetting: f64,
+    /// Sliding mass only: choose from the data which structure inside the one above the object
+    /// needs — with or without the ground spring, with or without friction — by an
+    /// information criterion on the estimator's fit, and render that one
+    /// (`mmt::estimator::EstimatorConfig::select_structure`). Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub select_structure: bool,
 }
 
 impl ModelSection {

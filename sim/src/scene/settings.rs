@@ -20,6 +20,8 @@ impl Scene {
             c.filter.svf.cutoff_hz = self.model.filter_cutoff_hz;
             c.filter.svf.sample_period_s = 1.0 / rate;
             c.forgetting = self.model.forgetting;
+            c.select_structure =
+                self.model.select_structure && matches!(structure, Structure::SlidingMass { .. });
             // A constant force per axis when the object has a static stiffness on the
             // tangential plane: a spring-mounted object's force depends on where the contact
             // began relative to its ground spring's rest (see `mmt::model::col::I`).

@@ -440,3 +440,30 @@ fn a_plane_that_cannot_fit_without_slipping_is_refused() {
         "{fit}"
     );
 }
+
+#[test]
+fn structure_selection_is_a_sliding_mass_option() {
+    let scene = with(
+        "forgetting = 0.9999",
+        "forgetting = 0.9999\nselect_structure = true",
+    )
+    .unwrap();
+    let settings = scene.telerobot_settings();
+    assert!(settings.tangential.select_structure);
+    assert!(!settings.normal.select_structure);
+    assert!(
+        !Scene::exp1()
+            .telerobot_settings()
+            .tangential
+            .select_structure
+    );
+    let e = Scene::from_toml(
+        &WALL_TOML.replacen("[model]", "[model]\nselect_structure = true", 1),
+        "w.toml",
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("model.select_structure = true"),
+        "{e}"
+    );
+}

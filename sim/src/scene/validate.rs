@@ -414,6 +414,12 @@ impl Scene {
                 !m.friction,
                 "false unless tangential = \"sliding-mass\"",
             )?;
+            field(
+                "model.select_structure",
+                m.select_structure,
+                !m.select_structure,
+                "false unless tangential = \"sliding-mass\" (only its structures are chosen from)",
+            )?;
         }
         field(
             "model.filter_cutoff_hz",
