@@ -2,6 +2,7 @@
 
 use metrics::ExperimentReport;
 use mmt::estimator::RejectionCounts;
+use mmt::model::{Structure, col};
 use serde::Serialize;
 
 /// The figures of one run of one object (from its experiment report).
@@ -36,6 +37,11 @@ pub struct CaseFigures {
     pub low_confidence: u64,
     /// Reduced (massless) sets confirmed and sent while the whole structure was not identified.
     pub reduced: u64,
+    /// The tangential structure the estimator chose from the data at its last back-solve
+    /// (`mmt benchmark --select-structure`); `None` without selection.
+    pub selected: Option<Structure>,
+    /// Whether that choice has a ground spring exactly when the object has one.
+    pub ground_spring_chosen_right: Option<bool>,
 }
 
 impl CaseFigures {
@@ -75,6 +81,12 @@ impl CaseFigures {
             confirmed: sum(&|s| s.confirmed),
             low_confidence: sum(&|s| s.low_confidence_confirmed),
             reduced: sum(&|s| s.reduced_confirmed),
+            selected: r
+                .estimators
+                .iter()
+                .find(|e| e.axes == "tangential")
+                .and_then(|e| e.stats.selected),
+            ground_spring_chosen_right: None,
         }
     }
 
@@ -161,6 +173,12 @@ pub struct Summary {
     pub reconstruction_error_pct: Percentiles,
     /// Worst tangential parameter error per object [%].
     pub worst_parameter_pct: Percentiles,
+    /// With structure selection: objects whose chosen structure has a ground spring exactly
+    /// when the object has one, of those with a choice.
+    pub ground_spring_right: Option<(usize, usize)>,
+    /// With structure selection: objects whose chosen structure has friction, of those with a
+    /// choice.
+    pub friction_chosen: Option<(usize, usize)>,
 }
 
 impl Summary {
@@ -174,6 +192,11 @@ impl Summary {
     ) -> Summary {
         let p =
             |f: &dyn Fn(&CaseFigures) -> Option<f64>| Percentiles::of(cases.iter().map(|c| f(c)));
+        // (true, known) over the cases where `f` is known; `None` when it never is.
+        let count = |f: &dyn Fn(&CaseFigures) -> Option<bool>| {
+            let known: Vec<bool> = cases.iter().filter_map(|c| f(c)).collect();
+            (!known.is_empty()).then(|| (known.iter().filter(|&&v| v).count(), known.len()))
+        };
         Summary {
             motion: motion.to_string(),
             delay_ms,
@@ -194,6 +217,8 @@ impl Summary {
             time_to_stable_s: p(&|c| c.time_to_stable_s),
             reconstruction_error_pct: p(&|c| c.reconstruction_error_pct),
             worst_parameter_pct: p(&|c| c.worst_tangential_parameter_pct()),
+            ground_spring_right: count(&|c| c.ground_spring_chosen_right),
+            friction_chosen: count(&|c| c.selected.map(|s| s.columns().contains(col::G))),
         }
     }
 }

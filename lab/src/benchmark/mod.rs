@@ -49,6 +49,34 @@ pub struct BenchmarkConfig {
     pub seconds: f64,
     /// Worker threads. Default 1.
     pub jobs: usize,
+    /// Which tangential structure the scenes give the estimator. Default: the object's own.
+    pub structure: StructureMode,
+}
+
+/// Which tangential structure a benchmark's scenes give the estimator.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StructureMode {
+    /// The object's own: a ground spring exactly when it has one, and friction.
+    #[default]
+    Object,
+    /// The largest (ground spring and friction) for every object: a scene that does not say.
+    Whole,
+    /// The largest, and the estimator chooses from the data which of it the object needs
+    /// (`EstimatorConfig::select_structure`).
+    Select,
+}
+
+impl StructureMode {
+    /// The mode of a name (`object`, `whole`, `select`).
+    pub fn parse(name: &str) -> Option<StructureMode> {
+        match name {
+            "object" => Some(StructureMode::Object),
+            "whole" => Some(StructureMode::Whole),
+            "select" => Some(StructureMode::Select),
+            _ => None,
+        }
+    }
 }
 
 impl Default for BenchmarkConfig {
@@ -63,6 +91,7 @@ impl Default for BenchmarkConfig {
             presets: vec![SensorPreset::FrankaLike],
             seconds: 60.0,
             jobs: 1,
+            structure: StructureMode::Object,
         }
     }
 }
@@ -152,13 +181,23 @@ pub fn run_case(
     } else {
         Kind::Exp1
     };
-    let mut e = ExperimentConfig::new(kind, object.scene(preset));
+    let mut scene = object.scene(preset);
+    if config.structure != StructureMode::Object {
+        scene.model.ground_spring = true;
+        scene.model.friction = true;
+        scene.model.select_structure = config.structure == StructureMode::Select;
+    }
+    let mut e = ExperimentConfig::new(kind, scene);
     e.delay_ms = case.delay_ms;
     e.seconds = config.seconds;
     e.seed = case.seed;
     e.trajectory = case.motion.clone();
     let (_, report) = run_experiment(&e, &mut |_| {})?;
-    Ok(CaseFigures::from_report(&report))
+    let mut figures = CaseFigures::from_report(&report);
+    figures.ground_spring_chosen_right = figures
+        .selected
+        .map(|s| s.columns().contains(mmt::model::col::D) == object.ground_spring);
+    Ok(figures)
 }
 
 /// Runs every case on `config.jobs` threads; `progress(done, total)` after each case.

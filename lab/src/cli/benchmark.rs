@@ -8,7 +8,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use sim::scene::SensorPreset;
 
-use crate::benchmark::{BenchmarkConfig, BenchmarkReport, MOTIONS, Percentiles, Summary, run};
+use crate::benchmark::{
+    BenchmarkConfig, BenchmarkReport, MOTIONS, Percentiles, StructureMode, Summary, run,
+};
 use crate::plot::{Panel, Series as Line, png, svg};
 
 /// Run the pipeline over a seeded class of objects and named corner cases.
@@ -38,6 +40,12 @@ pub struct BenchmarkArgs {
     /// Leave out the named corner cases.
     #[arg(long)]
     no_corner_cases: bool,
+    /// The tangential structure the estimator is given: `object` (each object's own), `whole`
+    /// (ground spring and friction for every object: a scene that does not say), or `select`
+    /// (the whole one, and the estimator chooses from the data which of it the object needs;
+    /// the tables say what it chose).
+    #[arg(long, default_value = "object")]
+    structure: String,
     /// Print the report as JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -114,6 +122,12 @@ fn config(args: &BenchmarkArgs) -> Result<BenchmarkConfig> {
             );
         }
     }
+    let Some(structure) = StructureMode::parse(&args.structure) else {
+        bail!(
+            "unknown --structure {:?}: expected object, whole or select",
+            args.structure
+        );
+    };
     if args.objects == 0 && args.no_corner_cases {
         bail!("no objects: --objects 0 with --no-corner-cases leaves nothing to run");
     }
@@ -129,6 +143,7 @@ fn config(args: &BenchmarkArgs) -> Result<BenchmarkConfig> {
             .jobs
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
             .max(1),
+        structure,
         ..BenchmarkConfig::default()
     })
 }
@@ -171,8 +186,26 @@ fn cases_table(r: &BenchmarkReport) -> String {
             opt(f.worst_tangential_parameter_pct(), 0),
             format!("{}/{}/{}", f.gate_rejections, f.withheld, f.confirmed),
         );
+        if let Some(chosen) = f.selected {
+            let _ = writeln!(out, "{:<15} chose {}", "", structure_label(chosen));
+        }
     }
     out
+}
+
+/// The terms a sliding-mass structure has beyond mass, contact and ground damper.
+fn structure_label(s: mmt::model::Structure) -> String {
+    match s {
+        mmt::model::Structure::SlidingMass {
+            ground_spring,
+            friction,
+        } => format!(
+            "sliding mass{}{}",
+            if ground_spring { ", ground spring" } else { "" },
+            if friction { ", friction" } else { "" }
+        ),
+        other => format!("{other:?}"),
+    }
 }
 
 fn pct(p: &Percentiles, digits: usize) -> String {
@@ -218,6 +251,15 @@ fn summary_table(r: &BenchmarkReport) -> String {
             pct(&s.time_to_stable_s, 2),
             pct(&s.worst_parameter_pct, 0),
         );
+    }
+    for s in &r.summaries {
+        if let (Some((gs, n)), Some((fr, m))) = (s.ground_spring_right, s.friction_chosen) {
+            let _ = writeln!(
+                out,
+                "structure chosen, {} {} ms {} {}: ground spring right for {gs} of {n}, friction for {fr} of {m}",
+                s.motion, s.delay_ms, s.preset, s.objects
+            );
+        }
     }
     out
 }
