@@ -259,6 +259,8 @@ pub struct Estimator {
     structure: Structure,
     /// A structure selection chose that is not in use yet, and for how many back-solves in a row.
     pending: Option<(Structure, u32)>,
+    /// The structure selection has run for this model.
+    selection_ran: bool,
     stats: EstimatorStats,
 }
 
@@ -341,6 +343,7 @@ impl Estimator {
             model_id: 0,
             structure: config.structure,
             pending: None,
+            selection_ran: false,
             stats: EstimatorStats::default(),
             config,
         })
@@ -472,6 +475,7 @@ impl Estimator {
         self.model_id += 1;
         self.structure = self.config.structure;
         self.pending = None;
+        self.selection_ran = false;
     }
 
     /// The last confirmed set.
