@@ -1,5 +1,5 @@
-//! The estimator on the simulated object: the exp-1 figures, re-contact, new objects, tare,
-//! Kelvin–Voigt on two axes, invalid settings, confidence counts.
+//! The estimator on the simulated object: the exp-1 figures, re-contact, new objects, tare, a
+//! bias drifting in contact, Kelvin–Voigt on two axes, invalid settings, confidence counts.
 
 #![allow(clippy::unwrap_used)]
 
@@ -460,4 +460,95 @@ fn with_structure_selection_only_the_settled_choice_is_published() {
     let (sets, stats) = published(false);
     assert!(!sets.is_empty() && sets.iter().all(|(_, s)| has_k1(s)));
     assert_eq!(stats.selected, None);
+}
+
+/// The normal-axis estimator of the exp-1 scene read through the arm-wrench sensors, as
+/// `Scene::telerobot_settings` builds it.
+fn arm_wrench_normal_config() -> EstimatorConfig {
+    let toml = sim::scene::EXP1_TOML.replace("preset = \"franka-like\"", "preset = \"arm-wrench\"");
+    let scene = sim::scene::Scene::from_toml(&toml, "exp1, arm-wrench").unwrap();
+    assert_eq!(scene.sensors.noise(), SensorNoise::ARM_WRENCH);
+    scene.telerobot_settings().normal
+}
+
+/// The relative error [%] of the last confirmed stiffness of the exp-1 scene's Kelvin–Voigt
+/// surface (500 N/m, 60 N·s/m), pressed along the normal of `trajectory` for 60 s and read
+/// through the arm-wrench sensors with their force bias drifting at `drift_n_per_s`.
+fn pressed_stiffness_error_pct(
+    config: EstimatorConfig,
+    drift_n_per_s: f64,
+    trajectory: &str,
+    seed: u64,
+) -> f64 {
+    use sim::trajectory::Trajectory;
+    let (k, b) = (500.0, 60.0);
+    let noise = SensorNoise {
+        force_bias_drift_n_per_s: drift_n_per_s,
+        ..SensorNoise::ARM_WRENCH
+    };
+    let mut sensors = sim::Sensors::new(noise, 1e-3, Pcg64::seed_from_u64(seed));
+    let path = sim::trajectory::by_name(trajectory, 60.0, [0.0; 3], [0.0, 0.0, 1.0]).unwrap();
+    let mut est = Estimator::new(config).unwrap();
+    for i in 0..60_000 {
+        let t = i as f64 * 1e-3;
+        let s = path.sample(t);
+        let (h, v) = (s.position_m[2], s.velocity_m_per_s[2]);
+        let contact = h < 0.0;
+        let f = if contact {
+            (-k * h - b * v).max(0.0)
+        } else {
+            0.0
+        };
+        let m = sensors.measure(sim::Measurement {
+            position_m: h,
+            velocity_m_per_s: v,
+            force_n: f,
+        });
+        let sample = AxisSample {
+            position_m: m.position_m,
+            velocity_m_per_s: m.velocity_m_per_s,
+            force_n: m.force_n,
+        };
+        est.step(t, &[sample], contact);
+    }
+    let kv = est.latest().unwrap().kelvin_voigt().unwrap();
+    let e = 100.0 * (kv.k_n_per_m / k - 1.0);
+    eprintln!(
+        "{trajectory}, {drift_n_per_s} N/s, seed {seed}, intercept {}: k {e:+.1} %",
+        config.intercept
+    );
+    e
+}
+
+/// Issue 12 item 4: a bias that drifts during contact must not be learnt as stiffness. The tare
+/// removes the force sensor's offset only out of contact; at the nearly constant depth of a
+/// press, an offset that grows during the contact is a stiffer spring (`Δk ≈ Δoffset/depth`).
+/// The drift here, 10 mN/s, is ten times the arm-wrench preset's assumed 1 mN/s and the most the
+/// issue calls realistic: over one 60 s contact the offset grows by 0.6 N, 30 % of the 2 N the
+/// surface pushes with. The estimator the scene builds for these sensors fits a constant
+/// restarted at every onset with a small variance and gates k and b by the data's information.
+/// Measured over seeds 1–3: k within −2.5…−2.8 % pressing along exp 2's schedule (−1.6…−1.9 %
+/// without drift) and within +0.9…+2.9 % in a still hold (−1.0…+1.9 %). This test fails without
+/// the constant (`intercept: false`, what the scene built before: k 23–26 % too stiff in both,
+/// checked at the end) and with the constant restarted as loosely as the prior
+/// (`onset_intercept_covariance: 1e3`: the hold's k +457 % at seed 1).
+#[test]
+fn a_bias_drifting_during_contact_is_not_learnt_as_stiffness() {
+    let config = arm_wrench_normal_config();
+    assert!(config.intercept);
+    for trajectory in ["exp2", "hold"] {
+        for seed in 1..=3 {
+            let e = pressed_stiffness_error_pct(config, 0.01, trajectory, seed);
+            assert!(
+                e.abs() <= 8.0,
+                "{trajectory}, seed {seed}: k off by {e:+.1} %"
+            );
+        }
+    }
+    let without = EstimatorConfig {
+        intercept: false,
+        ..config
+    };
+    let e = pressed_stiffness_error_pct(without, 0.01, "exp2", 1);
+    assert!(e >= 15.0, "without the constant: k off by only {e:+.1} %");
 }

@@ -83,6 +83,14 @@ pub struct EstimatorConfig {
     /// relative to where its ground spring rests, which no other column can represent. Default
     /// true.
     pub intercept: bool,
+    /// Variance of the constants (scaled units, as [`Self::initial_covariance`]) when they
+    /// restart at a contact onset. Default 1e3, the prior's: nothing known about them. A small
+    /// value says the constant is nearly known at the onset — a sensor offset the tare has just
+    /// removed — and lets it depart from there only as the data or the forgetting allow: a
+    /// still hold, which cannot tell a stiffness from a constant, then leaves the stiffness
+    /// where the motion put it (the normal axis with a drifting sensor,
+    /// `sim::scene::Scene::telerobot_settings`).
+    pub onset_intercept_covariance: f64,
     /// Back-solve and gate with the data's information ([`gate_informed`]) rather than with
     /// per-coefficient weights. Default true.
     pub informed: bool,
@@ -153,6 +161,7 @@ impl EstimatorConfig {
             reset: ResetPolicy::NewObject,
             tare_time_constant_s: 0.5,
             intercept: true,
+            onset_intercept_covariance: 1e3,
             informed: true,
             friction_observer: true,
             observer_discount: 0.3,
@@ -298,6 +307,13 @@ impl Estimator {
             w,
             w >= 0.0,
             "≥ 0 s (∞ waits for a confirmed set)",
+        )?;
+        let v = config.onset_intercept_covariance;
+        field(
+            "onset_intercept_covariance",
+            v,
+            v.is_finite() && v > 0.0,
+            "> 0",
         )?;
         let t = config.tare_time_constant_s;
         field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
@@ -448,8 +464,8 @@ impl Estimator {
 
     /// A new episode: with a static stiffness `d` in the structure, the constant of each axis
     /// becomes `d·x` at the onset (the object at rest where its ground spring balances the
-    /// unloaded contact), uncertain by the prior covariance; without, the constant is a force
-    /// offset that persists and is kept.
+    /// unloaded contact), uncertain by [`EstimatorConfig::onset_intercept_covariance`]; without,
+    /// the constant is a force offset that persists and is kept.
     fn restart_intercepts(&mut self) {
         if !(self.config.intercept && self.config.structure.columns().contains(col::D)) {
             return;
@@ -458,7 +474,7 @@ impl Estimator {
         // ψ_D = −x_f: the filtered position at the onset.
         let at = |i: usize| -d * self.regressions[i].psi[col::D];
         self.rls
-            .reset_intercepts([at(0), at(1)], self.config.initial_covariance);
+            .reset_intercepts([at(0), at(1)], self.config.onset_intercept_covariance);
     }
 
     fn start_new_model(&mut self) {

@@ -224,6 +224,11 @@ pub fn gate_informed(
     }
     let solved = back_solve_informed(structure, theta, information, &config.back_solve)
         .map_err(GateRejection::BackSolve)?;
+    if let Params::KelvinVoigt(_) = solved.params {
+        // Its parameters are θ̂'s own coefficients: a negative one is not physical, however
+        // well the data pin it down.
+        check_physical(&solved.params)?;
+    }
     // A sliding mass always has a spread when informed; none means JᵀJ was singular: some
     // direction of the parameters is not seen by the data at all.
     let worst = match (solved.params, solved.spread) {

@@ -105,6 +105,18 @@ impl Information {
         n
     }
 
+    /// The variance of coefficient `c`'s estimate given the data [its unit²]: `P`'s diagonal
+    /// entry `Σ_{l≥j} U_jl² D_l`, unscaled, times [`Self::noise_variance`]; `None` when `c` is
+    /// not in the information.
+    pub fn variance(&self, c: usize) -> Option<f64> {
+        let j = self.cols[..self.n].iter().position(|&x| x == c)?;
+        let p: f64 = self.d[j]
+            + (j + 1..self.n)
+                .map(|l| self.u[j][l] * self.u[j][l] * self.d[l])
+                .sum::<f64>();
+        Some(self.noise_variance() * p / (self.scale[j] * self.scale[j]))
+    }
+
     /// `δᵀ P⁻¹ δ` [N²]: how much worse `θ̂ + δ` predicts the data.
     pub fn distance2(&self, delta: &[f64; N]) -> f64 {
         let mut r = [0.0; N];
@@ -204,5 +216,26 @@ mod tests {
         assert!(
             Information::new(&cols, &scale, |i, j| u[i][j], &[0.5, 0.0, 1.0], 1.0, 0.0).is_none()
         );
+    }
+
+    /// A coefficient's variance is `P`'s diagonal entry, unscaled, times the noise variance
+    /// (and the samples it stays correlated over).
+    #[test]
+    fn variance_is_the_unscaled_covariance_diagonal() {
+        let cols = [col::A, col::C, col::F];
+        let scale = [2.0, 0.5, 4.0];
+        let u = [[1.0, 0.3, -0.7], [0.0, 1.0, 0.2], [0.0, 0.0, 1.0]];
+        let d = [0.5, 2.0, 0.1];
+        let info = Information::new(&cols, &scale, |i, j| u[i][j], &d, 10.0, 0.3)
+            .unwrap()
+            .with_correlation(4.0);
+        let p: nalgebra::Matrix3<f64> =
+            nalgebra::Matrix3::from_fn(|i, j| (0..3).map(|k| u[i][k] * d[k] * u[j][k]).sum());
+        for (k, &c) in cols.iter().enumerate() {
+            let want = 0.3 * 4.0 * p[(k, k)] / (scale[k] * scale[k]);
+            let got = info.variance(c).unwrap();
+            assert!((got - want).abs() < 1e-12 * want, "{c}: {got} vs {want}");
+        }
+        assert_eq!(info.variance(col::B), None);
     }
 }

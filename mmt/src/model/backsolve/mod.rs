@@ -100,7 +100,7 @@ pub struct BackSolved {
     /// Whether the numbers can be trusted.
     pub confidence: Confidence,
     /// How well the data pin each parameter down, when the back-solve was given the data's
-    /// [`Information`] (a sliding mass only).
+    /// [`Information`].
     pub spread: Option<Spread>,
 }
 
@@ -115,9 +115,9 @@ pub struct Spread {
     pub k_ground: f64,
     /// b1.
     pub b_ground: f64,
-    /// k2.
+    /// k2 (a Kelvin–Voigt's k).
     pub k_contact: f64,
-    /// b2.
+    /// b2 (a Kelvin–Voigt's b).
     pub b_contact: f64,
 }
 
@@ -263,16 +263,19 @@ fn solve(
             confidence: Confidence::Identified,
             spread: None,
         }),
-        Structure::KelvinVoigt => Ok(BackSolved {
-            params: Params::KelvinVoigt(KelvinVoigt {
+        Structure::KelvinVoigt => {
+            let kv = KelvinVoigt {
                 k_n_per_m: theta.0[col::D],
                 b_ns_per_m: theta.0[col::C],
-            }),
-            residual: 0.0,
-            condition: 1.0,
-            confidence: Confidence::Identified,
-            spread: None,
-        }),
+            };
+            Ok(BackSolved {
+                params: Params::KelvinVoigt(kv),
+                residual: 0.0,
+                condition: 1.0,
+                confidence: Confidence::Identified,
+                spread: information.map(|i| kelvin_voigt_spread(&kv, i)),
+            })
+        }
         Structure::SlidingMass {
             ground_spring,
             friction,
@@ -340,6 +343,22 @@ fn sliding_mass(
         confidence: confidence_of(condition, config),
         spread,
     })
+}
+
+/// A Kelvin–Voigt set's spread: its coefficients are its parameters, so each spread is the
+/// coefficient's standard deviation given the data over its value (`k` in
+/// [`Spread::k_contact`], `b` in [`Spread::b_contact`]; infinite when the value is not
+/// positive).
+fn kelvin_voigt_spread(kv: &KelvinVoigt, information: &Information) -> Spread {
+    let relative = |c: usize, value: f64| match information.variance(c) {
+        Some(v) if value > 0.0 => v.sqrt() / value,
+        _ => f64::INFINITY,
+    };
+    Spread {
+        k_contact: relative(col::D, kv.k_n_per_m),
+        b_contact: relative(col::C, kv.b_ns_per_m),
+        ..Spread::default()
+    }
 }
 
 /// Every coefficient the structure has is finite.
