@@ -21,6 +21,17 @@ pub fn table(r: &ExperimentReport) -> String {
     for p in &r.parameters {
         parameter_lines(&mut out, p);
     }
+    for e in &r.estimators {
+        if let Some(chosen) = e.stats.selected {
+            let _ = writeln!(
+                out,
+                "structure chosen from the data, {}: {} ({} changes)",
+                e.axes,
+                chosen.describe(),
+                e.stats.structure_changes
+            );
+        }
+    }
     if !r.left_out.is_empty() {
         let _ = writeln!(out, "left out: {}", r.left_out.join("; "));
     }

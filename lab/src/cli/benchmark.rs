@@ -187,25 +187,10 @@ fn cases_table(r: &BenchmarkReport) -> String {
             format!("{}/{}/{}", f.gate_rejections, f.withheld, f.confirmed),
         );
         if let Some(chosen) = f.selected {
-            let _ = writeln!(out, "{:<15} chose {}", "", structure_label(chosen));
+            let _ = writeln!(out, "{:<15} chose {}", "", chosen.describe());
         }
     }
     out
-}
-
-/// The terms a sliding-mass structure has beyond mass, contact and ground damper.
-fn structure_label(s: mmt::model::Structure) -> String {
-    match s {
-        mmt::model::Structure::SlidingMass {
-            ground_spring,
-            friction,
-        } => format!(
-            "sliding mass{}{}",
-            if ground_spring { ", ground spring" } else { "" },
-            if friction { ", friction" } else { "" }
-        ),
-        other => format!("{other:?}"),
-    }
 }
 
 fn pct(p: &Percentiles, digits: usize) -> String {

@@ -276,47 +276,7 @@ pub struct Estimator {
 impl Estimator {
     /// Validates the configuration and builds the pipeline at rest.
     pub fn new(config: EstimatorConfig) -> Result<Self, EstimatorError> {
-        let field = |field, value: f64, ok: bool, expected| {
-            if ok {
-                Ok(())
-            } else {
-                Err(EstimatorError::Field {
-                    field,
-                    value,
-                    expected,
-                })
-            }
-        };
-        field(
-            "axes",
-            config.axes as f64,
-            (1..=MAX_AXES).contains(&config.axes),
-            "1 or 2",
-        )?;
-        let g = config.onset_guard_s;
-        field("onset_guard_s", g, g.is_finite() && g >= 0.0, "≥ 0 s")?;
-        let p = config.back_solve_period_s;
-        field("back_solve_period_s", p, p.is_finite() && p > 0.0, "> 0 s")?;
-        let d = config.detector_mute_s;
-        field("detector_mute_s", d, d.is_finite() && d >= 0.0, "≥ 0 s")?;
-        let r = config.observer_discount;
-        field("observer_discount", r, r > 0.0 && r <= 1.0, "in (0, 1]")?;
-        let w = config.observer_wait_s;
-        field(
-            "observer_wait_s",
-            w,
-            w >= 0.0,
-            "≥ 0 s (∞ waits for a confirmed set)",
-        )?;
-        let v = config.onset_intercept_covariance;
-        field(
-            "onset_intercept_covariance",
-            v,
-            v.is_finite() && v > 0.0,
-            "> 0",
-        )?;
-        let t = config.tare_time_constant_s;
-        field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
+        Self::validate(&config)?;
         config.confidence.validate()?;
         let filter = RegressorFilter::new(config.filter)?;
         let mut columns = config.structure.columns();
@@ -363,6 +323,52 @@ impl Estimator {
             stats: EstimatorStats::default(),
             config,
         })
+    }
+
+    /// The first invalid scalar field, named.
+    fn validate(config: &EstimatorConfig) -> Result<(), EstimatorError> {
+        let field = |field, value: f64, ok: bool, expected| {
+            if ok {
+                Ok(())
+            } else {
+                Err(EstimatorError::Field {
+                    field,
+                    value,
+                    expected,
+                })
+            }
+        };
+        field(
+            "axes",
+            config.axes as f64,
+            (1..=MAX_AXES).contains(&config.axes),
+            "1 or 2",
+        )?;
+        let g = config.onset_guard_s;
+        field("onset_guard_s", g, g.is_finite() && g >= 0.0, "≥ 0 s")?;
+        let p = config.back_solve_period_s;
+        field("back_solve_period_s", p, p.is_finite() && p > 0.0, "> 0 s")?;
+        let d = config.detector_mute_s;
+        field("detector_mute_s", d, d.is_finite() && d >= 0.0, "≥ 0 s")?;
+        let r = config.observer_discount;
+        field("observer_discount", r, r > 0.0 && r <= 1.0, "in (0, 1]")?;
+        let w = config.observer_wait_s;
+        field(
+            "observer_wait_s",
+            w,
+            w >= 0.0,
+            "≥ 0 s (∞ waits for a confirmed set)",
+        )?;
+        let v = config.onset_intercept_covariance;
+        field(
+            "onset_intercept_covariance",
+            v,
+            v.is_finite() && v > 0.0,
+            "> 0",
+        )?;
+        let t = config.tare_time_constant_s;
+        field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
+        Ok(())
     }
 
     /// One tick at time `now_s` [s]: the measurement of each axis (`config.axes` of them) and

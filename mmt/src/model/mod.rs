@@ -318,6 +318,22 @@ impl Structure {
         }
     }
 
+    /// The structure in words, for reports: `sliding mass, ground spring, friction`.
+    pub fn describe(self) -> String {
+        match self {
+            Structure::Free => "free".into(),
+            Structure::KelvinVoigt => "kelvin-voigt".into(),
+            Structure::SlidingMass {
+                ground_spring,
+                friction,
+            } => format!(
+                "sliding mass{}{}",
+                if ground_spring { ", ground spring" } else { "" },
+                if friction { ", friction" } else { "" }
+            ),
+        }
+    }
+
     /// Human-readable names of the physical terms this structure leaves out.
     pub fn left_out(self) -> Vec<&'static str> {
         const ALL: [&str; 6] = [
