@@ -5,7 +5,7 @@
 use super::{Estimator, ObservedObject, Update};
 use crate::model::backsolve::Confidence as BackSolveConfidence;
 use crate::model::backsolve::Information;
-use crate::model::gates::{Gated, gate, gate_informed, gate_massless};
+use crate::model::gates::{Gated, check_deflection, gate, gate_informed, gate_massless};
 use crate::model::{Structure, Theta, col, select};
 
 impl Estimator {
@@ -34,6 +34,8 @@ impl Estimator {
             }
             (_, d) => d,
         };
+        let force_rms = self.rls.output_rms();
+        let gated = gated.and_then(|g| check_deflection(g, force_rms, &self.config.gates));
         match gated {
             Ok(g) => {
                 self.observe(&g);
@@ -86,7 +88,10 @@ impl Estimator {
         if !(self.config.reduced_model && sliding) || whole {
             return;
         }
-        match gate_massless(self.structure, theta, info, &self.config.gates) {
+        let force_rms = self.rls.output_rms();
+        let gated = gate_massless(self.structure, theta, info, &self.config.gates)
+            .and_then(|g| check_deflection(g, force_rms, &self.config.gates));
+        match gated {
             Ok(g) => {
                 self.observe(&g);
                 // Judged by its own fit (the massless gate's residual) and by holding still, not

@@ -373,6 +373,11 @@ impl Rls {
         self.last_error
     }
 
+    /// EWMA RMS of the output learnt from, `√E[y²]` [N] (0 before any update).
+    pub fn output_rms(&self) -> f64 {
+        self.out2.sqrt()
+    }
+
     /// EWMA relative size of the a-priori error, `√(E[e²]/E[y²])`; `None` before any update.
     pub fn relative_error(&self) -> Option<f64> {
         (self.out2 > 0.0).then(|| (self.err2 / self.out2).sqrt())

@@ -285,3 +285,45 @@ proptest! {
         prop_assert!(numerically_passive(&p.theta().unwrap().0));
     }
 }
+
+/// A contact spring too soft for the force measured is refused, at the bound exactly, for a
+/// sliding mass and a Kelvin–Voigt; free space, and a force that is not a positive number (no
+/// contact yet), pass.
+#[test]
+fn a_contact_spring_too_soft_for_the_measured_force_is_refused() {
+    let config = GateConfig::default();
+    let max = config.max_contact_deflection_m;
+    let swapped = Physical {
+        mass_kg: 9.6,
+        k_ground_n_per_m: 3916.0,
+        b_ground_ns_per_m: 14.3,
+        k_contact_n_per_m: 0.58,
+        b_contact_ns_per_m: 12.1,
+        coulomb_n: 0.0,
+    };
+    let soft = gate_physical(FULL, &Params::SlidingMass(swapped)).unwrap();
+    match check_deflection(soft, 2.0, &config) {
+        Err(GateRejection::TooSoft {
+            deflection_m,
+            max_m,
+        }) => {
+            assert!((deflection_m - 2.0 / 0.58).abs() < 1e-12);
+            assert_eq!(max_m, max);
+        }
+        other => panic!("{other:?}"),
+    }
+    let good = gate_physical(FULL, &Params::SlidingMass(typical())).unwrap();
+    let k2 = typical().k_contact_n_per_m;
+    assert!(check_deflection(good, k2 * max, &config).is_ok());
+    assert!(check_deflection(good, k2 * max * (1.0 + 1e-9), &config).is_err());
+    let kv = Params::KelvinVoigt(KelvinVoigt {
+        k_n_per_m: 500.0,
+        b_ns_per_m: 60.0,
+    });
+    let kv = gate_physical(Structure::KelvinVoigt, &kv).unwrap();
+    assert!(check_deflection(kv, 3.0, &config).is_ok());
+    assert!(check_deflection(kv, 60.0, &config).is_err());
+    for f in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(check_deflection(soft, f, &config).is_ok(), "{f}");
+    }
+}
