@@ -453,8 +453,10 @@ fn with_structure_selection_only_the_settled_choice_is_published() {
         stats.selected,
         stats.structure_changes
     );
-    // Contact at 0.5 s, learning after the 0.3 s guard, the choice after 1 s of it.
-    assert!(first.is_some_and(|t| t >= 1.8), "first set at {first:?} s");
+    // Contact at 0.5 s, learning after the 0.3 s guard, the choice after 20 independent
+    // samples: 2 s of learning on one axis filtered at 5 Hz (10 a second). Without the rule the
+    // first set came at 1.94 s, with the ground spring.
+    assert!(first.is_some_and(|t| t >= 2.8), "first set at {first:?} s");
     assert!(sets.iter().all(|(_, s)| !has_k1(s)));
     assert!(stats.selected.is_some_and(|s| !has_k1(&s)));
     let (sets, stats) = published(false);
@@ -528,7 +530,7 @@ fn pressed_stiffness_error_pct(
 /// surface pushes with. The estimator the scene builds for these sensors fits a constant
 /// restarted at every onset with a small variance and gates k and b by the data's information.
 /// Measured over seeds 1–3: k within −2.5…−2.8 % pressing along exp 2's schedule (−1.6…−1.9 %
-/// without drift) and within +0.9…+2.9 % in a still hold (−1.0…+1.9 %). This test fails without
+/// without drift) and within +1.2…+4.0 % in a still hold (−1.0…+1.9 %). This test fails without
 /// the constant (`intercept: false`, what the scene built before: k 23–26 % too stiff in both,
 /// checked at the end) and with the constant restarted as loosely as the prior
 /// (`onset_intercept_covariance: 1e3`: the hold's k +457 % at seed 1).

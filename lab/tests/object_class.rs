@@ -275,5 +275,5 @@ fn a_set_whose_contact_spring_is_too_soft_for_the_force_is_not_rendered() {
     let first = f.error_from_first_contact_pct;
     eprintln!("from first contact {first:?} %, {:?}", f.rejections);
     assert!(first.is_some_and(|e| e < 500.0), "{first:?} %");
-    assert!(f.rejections.not_physical > 0);
+    assert!(f.rejections.too_soft > 0);
 }

@@ -38,7 +38,7 @@ pub struct CaseFigures {
     /// Reduced (massless) sets confirmed and sent while the whole structure was not identified.
     pub reduced: u64,
     /// The tangential structure the estimator chose from the data at its last back-solve
-    /// (`mmt benchmark --select-structure`); `None` without selection.
+    /// (`mmt benchmark --structure select`); `None` without selection.
     pub selected: Option<Structure>,
     /// Whether that choice has a ground spring exactly when the object has one.
     pub ground_spring_chosen_right: Option<bool>,
@@ -73,6 +73,7 @@ impl CaseFigures {
                 not_eigen_stable: sum(&|s| s.rejections.not_eigen_stable),
                 not_passive: sum(&|s| s.rejections.not_passive),
                 not_physical: sum(&|s| s.rejections.not_physical),
+                too_soft: sum(&|s| s.rejections.too_soft),
                 residual: sum(&|s| s.rejections.residual),
                 back_solve: sum(&|s| s.rejections.back_solve),
                 not_identified: sum(&|s| s.rejections.not_identified),

@@ -270,6 +270,8 @@ pub struct Estimator {
     pending: Option<(Structure, u32)>,
     /// The structure selection has run for this model.
     selection_ran: bool,
+    /// This model's selection has settled once (publication may start).
+    settled: bool,
     stats: EstimatorStats,
 }
 
@@ -320,6 +322,7 @@ impl Estimator {
             structure: config.structure,
             pending: None,
             selection_ran: false,
+            settled: false,
             stats: EstimatorStats::default(),
             config,
         })
@@ -365,6 +368,13 @@ impl Estimator {
             v,
             v.is_finite() && v > 0.0,
             "> 0",
+        )?;
+        let m = config.gates.max_contact_deflection_m;
+        field(
+            "gates.max_contact_deflection_m",
+            m,
+            m.is_finite() && m > 0.0,
+            "a finite length > 0 m",
         )?;
         let t = config.tare_time_constant_s;
         field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
@@ -498,6 +508,7 @@ impl Estimator {
         self.structure = self.config.structure;
         self.pending = None;
         self.selection_ran = false;
+        self.settled = false;
     }
 
     /// The last confirmed set.

@@ -121,12 +121,16 @@ impl Estimator {
     }
 
     /// Whether sets of the structure in use may be published: always without selection; with
-    /// it, once this model's selection has run and no other structure is pending. The whole
+    /// it, once this model's selection has run with no other structure pending (later changes
+    /// pending do not stop publication: the structure in use was chosen). The whole
     /// structure's early sets for an object that does not need all of it can be far off (a
     /// free object's with a ground spring: k1 3,900 N/m, k2 0.6 N/m, rendering 1.7 kN against
     /// 2 N on `mmt benchmark --seed 2 --structure select`'s class object 24).
-    fn structure_settled(&self) -> bool {
-        !self.selects() || (self.selection_ran && self.pending.is_none())
+    fn structure_settled(&mut self) -> bool {
+        if self.selects() && !self.settled && self.selection_ran && self.pending.is_none() {
+            self.settled = true;
+        }
+        !self.selects() || self.settled
     }
 
     fn selects(&self) -> bool {
@@ -159,7 +163,18 @@ impl Estimator {
         } else {
             self.learned_s
         };
-        let samples = memory_s * 2.0 * svf.cutoff_hz * self.config.axes as f64;
+        let per_s = 2.0 * svf.cutoff_hz * self.config.axes as f64;
+        let samples = memory_s * per_s;
+        // A memory too short ever to hold MIN_SAMPLES would otherwise never select, and never
+        // publish.
+        let held = if lambda < 1.0 {
+            dt / (1.0 - lambda) * per_s
+        } else {
+            f64::INFINITY
+        };
+        if samples < select::MIN_SAMPLES.min(0.9 * held) {
+            return;
+        }
         let theta = self.rls.theta();
         let Some(selection) = select::select(self.config.structure, &theta, &info, samples) else {
             return;
@@ -183,6 +198,9 @@ impl Estimator {
         self.pending = None;
         self.stats.selected = Some(next);
         self.stats.structure_changes += 1;
+        // The confidence windows are kept: their stillness check withholds a set whose terms
+        // changed until the new structure's sets fill them; clearing them measured 0.6–0.9 s
+        // later to stable (`mmt benchmark --structure select`, seeds 1–2) for the same errors.
         if !self.observes_friction() {
             // The observer ran a model of the structure left: its shape is not this one's.
             self.observed = None;
@@ -197,7 +215,9 @@ impl Estimator {
     /// set whose `k` or `b` the data do not pin down
     /// ([`crate::model::gates::GateConfig::max_spread`]).
     fn kelvin_voigt_with_constant(&self) -> bool {
-        self.config.structure == Structure::KelvinVoigt && self.config.intercept
+        self.config.structure == Structure::KelvinVoigt
+            && self.config.intercept
+            && self.config.axes == 1
     }
 
     /// Back-solve weights: the inverse standard deviations of θ̂ from the covariance, which are

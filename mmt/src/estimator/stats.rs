@@ -49,8 +49,11 @@ pub struct RejectionCounts {
     pub not_eigen_stable: u64,
     /// Stable but not passive.
     pub not_passive: u64,
-    /// A physical parameter negative, or the contact spring too soft for the force measured.
+    /// A physical parameter negative.
     pub not_physical: u64,
+    /// The contact spring too soft for the force measured.
+    #[serde(default)]
+    pub too_soft: u64,
     /// θ too far off the model manifold.
     pub residual: u64,
     /// The back-solve refused (e.g. the mass not identifiable).
@@ -66,9 +69,8 @@ impl RejectionCounts {
             GateRejection::NonFinite { .. } | GateRejection::Free => &mut self.non_finite,
             GateRejection::NotEigenStable { .. } => &mut self.not_eigen_stable,
             GateRejection::NotPassive { .. } => &mut self.not_passive,
-            GateRejection::NotPhysical { .. } | GateRejection::TooSoft { .. } => {
-                &mut self.not_physical
-            }
+            GateRejection::NotPhysical { .. } => &mut self.not_physical,
+            GateRejection::TooSoft { .. } => &mut self.too_soft,
             GateRejection::Residual { .. } => &mut self.residual,
             GateRejection::BackSolve(_) => &mut self.back_solve,
             GateRejection::NotIdentified { .. } => &mut self.not_identified,

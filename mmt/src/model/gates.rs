@@ -180,9 +180,14 @@ pub enum GateRejection {
     /// The contact spring is too soft for the force measured (see
     /// [`GateConfig::max_contact_deflection_m`]).
     #[error(
-        "the contact spring would deflect {deflection_m:.3} m under the measured force (at most {max_m} m)"
+        "the contact spring ({k_n_per_m} N/m) would deflect {deflection_m:.3} m under the \
+         {force_rms_n:.2} N RMS force measured (at most {max_m} m)"
     )]
     TooSoft {
+        /// The contact stiffness [N/m].
+        k_n_per_m: f64,
+        /// The RMS force [N].
+        force_rms_n: f64,
         /// `F_rms / k2` [m].
         deflection_m: f64,
         /// The configured maximum [m].
@@ -214,6 +219,8 @@ pub fn check_deflection(
         Ok(gated)
     } else {
         Err(GateRejection::TooSoft {
+            k_n_per_m: k,
+            force_rms_n,
             deflection_m,
             max_m: config.max_contact_deflection_m,
         })

@@ -46,8 +46,10 @@ pub const NEGLIGIBLE: f64 = 0.01;
 /// set's terms back and forth.
 pub const RELAX: f64 = 2.0;
 
-/// Independent samples below which nothing is selected (the whole structure stays): 1 s of
-/// learning on two axes filtered at 5 Hz. Earlier, a term's cost is as noisy as the estimate.
+/// Independent samples below which the estimator selects nothing (the whole structure stays):
+/// 1 s of learning on two axes filtered at 5 Hz (`n = t · 2 f_c · axes`). Earlier, a term's cost
+/// is as noisy as the estimate. A forgetting memory too short ever to reach it lowers it to
+/// 90 % of what the memory holds (`Estimator`'s selection).
 pub const MIN_SAMPLES: f64 = 20.0;
 
 /// A structure is taken only after being chosen this long in a row [s]: the published set's
@@ -168,8 +170,8 @@ pub fn candidates(whole: Structure) -> impl Iterator<Item = Structure> {
 
 /// Scores every structure inside `whole` ([`candidates`]) on the estimate `theta` of the whole
 /// structure, its `information` and `samples` independent samples. `None` when the noise
-/// variance is not positive (nothing to measure a misfit against), `samples` is below
-/// [`MIN_SAMPLES`], or an
+/// variance is not positive (nothing to measure a misfit against), `samples` is below 2 (no
+/// penalty: `ln n` < 0.7), or an
 /// omission cost cannot be computed (a number is not finite, the covariance is not positive).
 pub fn select(
     whole: Structure,
@@ -178,7 +180,7 @@ pub fn select(
     samples: f64,
 ) -> Option<Selection> {
     let sigma2 = information.noise_variance();
-    if !(sigma2 > 0.0 && sigma2.is_finite() && samples >= MIN_SAMPLES && samples.is_finite()) {
+    if !(sigma2 > 0.0 && sigma2.is_finite() && samples >= 2.0 && samples.is_finite()) {
         return None;
     }
     let penalty = samples.ln();

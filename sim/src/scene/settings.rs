@@ -32,10 +32,11 @@ impl Scene {
             //   the pose): the tare removes it only out of contact, and at the nearly constant
             //   depth of a press an offset that grows during the contact is a stiffer spring,
             //   `Δk ≈ Δoffset/depth` (issue 12 item 4: the arm-wrench sensors drifting 10 mN/s
-            //   made k 18–26 % too stiff over a 60 s contact, measured). It restarts at 0 with a
+            //   made k 18–26 % too stiff over a 60 s contact, measured). It restarts at `k·x` of the
+            //   onset (about 0: the depth at the surface) with a
             //   small variance (the tare has just removed the offset; 1e-2 against the 1e3 prior,
             //   a tenth of a second of data) so that a still hold, which cannot tell k from the
-            //   constant, keeps k where the press put it, and the informed gate asks k and b to
+            //   constant, keeps k where the press put it, and the informed gate asks k (and b, beside k/ω) to
             //   be known within 20 % (0.5: a 60 s hold confirmed k 4–12 % low; 0.1: exp 1's
             //   time to stable 1.1 → 1.4 s). A sensor whose offset stays put keeps the mean
             //   depth's information on k (the constant on exp 1's Franka-like sensors: k 6–10 %

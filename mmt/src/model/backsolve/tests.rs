@@ -365,3 +365,28 @@ fn massless_back_solve_on_degenerate_and_garbage_input() {
         .is_none()
     );
 }
+
+/// A pure spring surface (`b = 0`) has a finite damping spread, judged against `k/ω` at 1 Hz,
+/// so an informed gate can pass it; `k`'s spread is its standard deviation over its value.
+#[test]
+fn a_pure_spring_surface_has_a_finite_damping_spread() {
+    let cols = [col::C, col::D];
+    let info = Information::new(&cols, &[1.0, 1.0], |_, _| 0.0, &[4.0, 9.0], 1.0, 1.0).unwrap();
+    let spread = |b: f64| {
+        super::kelvin_voigt_spread(
+            &KelvinVoigt {
+                k_n_per_m: 300.0,
+                b_ns_per_m: b,
+            },
+            &info,
+        )
+    };
+    let pure = spread(0.0);
+    let omega = 2.0 * std::f64::consts::PI;
+    assert!(
+        (pure.b_contact - 2.0 / (300.0 / omega)).abs() < 1e-12,
+        "{pure:?}"
+    );
+    assert!((pure.k_contact - 3.0 / 300.0).abs() < 1e-12);
+    assert!((spread(100.0).b_contact - 2.0 / 100.0).abs() < 1e-12);
+}

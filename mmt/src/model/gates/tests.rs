@@ -306,6 +306,7 @@ fn a_contact_spring_too_soft_for_the_measured_force_is_refused() {
         Err(GateRejection::TooSoft {
             deflection_m,
             max_m,
+            ..
         }) => {
             assert!((deflection_m - 2.0 / 0.58).abs() < 1e-12);
             assert_eq!(max_m, max);

@@ -269,14 +269,14 @@ fn an_unexcited_term_is_left_out_and_garbage_selects_nothing() {
     assert_eq!(s.best().structure, sliding(false, true), "{s:?}");
     assert_eq!(s.choice().structure, sliding(false, true), "{s:?}");
     assert!(s.of(sliding(false, true)).unwrap().misfit < 1e-9);
-    assert_eq!(select(whole, &theta, &info, MIN_SAMPLES - 1.0), None);
+    assert_eq!(select(whole, &theta, &info, 1.0), None);
     assert_eq!(select(whole, &theta, &info, f64::NAN), None);
     let mut bad = theta;
     bad.0[col::G] = f64::INFINITY;
     assert_eq!(select(whole, &bad, &info, 3000.0), None);
-    // No noise measured yet (no update): nothing to weigh a misfit against.
-    let fresh = rls(whole.columns(), ColumnScales::UNIT, 1e3);
-    if let Some(i) = fresh.information() {
-        assert_eq!(select(whole, &fresh.theta(), &i, 3000.0), None);
-    }
+    // No noise measured (an exact fit): nothing to weigh a misfit against.
+    let cols: Vec<usize> = whole.columns().indices().collect();
+    let ones = vec![1.0; cols.len()];
+    let exact = Information::new(&cols, &ones, |_, _| 0.0, &ones, 1.0, 0.0).unwrap();
+    assert_eq!(select(whole, &theta, &exact, 3000.0), None);
 }
