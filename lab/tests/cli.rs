@@ -62,3 +62,22 @@ fn a_range_error_names_the_flag() {
         );
     }
 }
+
+/// An unknown `mmt benchmark --structure` is refused before anything runs, with the values it
+/// takes, and no backtrace.
+#[test]
+fn an_unknown_benchmark_structure_names_the_values() {
+    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(["benchmark", "--structure", "nope"])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("invalid value 'nope' for '--structure"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("object, whole, select"), "{stderr}");
+    assert!(!stderr.contains("backtrace"), "{stderr}");
+}

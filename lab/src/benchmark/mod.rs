@@ -54,7 +54,7 @@ pub struct BenchmarkConfig {
 }
 
 /// Which tangential structure a benchmark's scenes give the estimator.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum StructureMode {
     /// The object's own: a ground spring exactly when it has one, and friction.
@@ -65,18 +65,6 @@ pub enum StructureMode {
     /// The largest, and the estimator chooses from the data which of it the object needs
     /// (`EstimatorConfig::select_structure`).
     Select,
-}
-
-impl StructureMode {
-    /// The mode of a name (`object`, `whole`, `select`).
-    pub fn parse(name: &str) -> Option<StructureMode> {
-        match name {
-            "object" => Some(StructureMode::Object),
-            "whole" => Some(StructureMode::Whole),
-            "select" => Some(StructureMode::Select),
-            _ => None,
-        }
-    }
 }
 
 impl Default for BenchmarkConfig {

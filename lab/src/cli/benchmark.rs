@@ -44,8 +44,8 @@ pub struct BenchmarkArgs {
     /// (ground spring and friction for every object: a scene that does not say), or `select`
     /// (the whole one, and the estimator chooses from the data which of it the object needs;
     /// the tables say what it chose).
-    #[arg(long, default_value = "object")]
-    structure: String,
+    #[arg(long, value_enum, default_value_t = StructureMode::Object)]
+    structure: StructureMode,
     /// Print the report as JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -122,12 +122,6 @@ fn config(args: &BenchmarkArgs) -> Result<BenchmarkConfig> {
             );
         }
     }
-    let Some(structure) = StructureMode::parse(&args.structure) else {
-        bail!(
-            "unknown --structure {:?}: expected object, whole or select",
-            args.structure
-        );
-    };
     if args.objects == 0 && args.no_corner_cases {
         bail!("no objects: --objects 0 with --no-corner-cases leaves nothing to run");
     }
@@ -143,7 +137,7 @@ fn config(args: &BenchmarkArgs) -> Result<BenchmarkConfig> {
             .jobs
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
             .max(1),
-        structure,
+        structure: args.structure,
         ..BenchmarkConfig::default()
     })
 }
