@@ -3,20 +3,24 @@
 
 #![allow(clippy::unwrap_used)]
 
-use lab::benchmark::{BenchmarkConfig, Case, corner_cases, run_case};
+use lab::benchmark::{
+    BenchmarkConfig, Case, CaseFigures, Object, StructureMode, corner_cases, run_case,
+};
 
-fn run(
-    name: &str,
+/// One case as `mmt benchmark` runs it: franka-like sensors, the estimator given `structure`.
+fn run_object(
+    object: &Object,
     motion: &str,
     delay_ms: f64,
     seed: u64,
     seconds: f64,
-) -> lab::benchmark::CaseFigures {
+    structure: StructureMode,
+) -> CaseFigures {
     let config = BenchmarkConfig {
         seconds,
+        structure,
         ..BenchmarkConfig::default()
     };
-    let object = corner_cases().into_iter().find(|o| o.name == name).unwrap();
     let case = Case {
         object: 0,
         motion: motion.to_string(),
@@ -24,7 +28,20 @@ fn run(
         preset: "franka-like".to_string(),
         seed,
     };
-    run_case(&config, &object, &case).unwrap()
+    run_case(&config, object, &case).unwrap()
+}
+
+/// A named corner case with its own structure.
+fn run(name: &str, motion: &str, delay_ms: f64, seed: u64, seconds: f64) -> CaseFigures {
+    let object = corner_cases().into_iter().find(|o| o.name == name).unwrap();
+    run_object(
+        &object,
+        motion,
+        delay_ms,
+        seed,
+        seconds,
+        StructureMode::Object,
+    )
 }
 
 /// The spring-mounted object (k1 = 500 N/m) was never rendered: each contact episode begins
@@ -61,11 +78,7 @@ fn spring_mounted_object_is_rendered_with_an_intercept_per_contact() {
 /// `observer_wait_s` (1 s) of learning without one; measured: first render 3.6 s after contact.
 #[test]
 fn an_object_the_tool_sign_cannot_confirm_is_rendered_after_the_observer_wait() {
-    let config = BenchmarkConfig {
-        seconds: 20.0,
-        ..BenchmarkConfig::default()
-    };
-    let object = lab::benchmark::Object {
+    let object = Object {
         name: "class-07".to_string(),
         mass_kg: 0.7548,
         k_ground_n_per_m: 0.0,
@@ -76,14 +89,7 @@ fn an_object_the_tool_sign_cannot_confirm_is_rendered_after_the_observer_wait() 
         coulomb_friction_n: 0.9485,
         ground_spring: false,
     };
-    let case = Case {
-        object: 7,
-        motion: "exp1".to_string(),
-        delay_ms: 0.0,
-        preset: "franka-like".to_string(),
-        seed: 3008,
-    };
-    let f = run_case(&config, &object, &case).unwrap();
+    let f = run_object(&object, "exp1", 0.0, 3008, 20.0, StructureMode::Object);
     let render = f.time_to_first_render_s;
     eprintln!("first render {render:?} s after contact");
     assert!(render.is_some_and(|t| t <= 6.0), "first render {render:?}");
@@ -97,11 +103,7 @@ fn an_object_the_tool_sign_cannot_confirm_is_rendered_after_the_observer_wait() 
 /// render, 14–18 % error from the first contact.
 #[test]
 fn a_slow_probe_that_never_excites_the_mass_renders_the_massless_part() {
-    let config = BenchmarkConfig {
-        seconds: 20.0,
-        ..BenchmarkConfig::default()
-    };
-    let object = lab::benchmark::Object::from_terms;
+    let object = Object::from_terms;
     let objects = [
         (
             object("class-00", [1.142, 350.5, 5.402, 687.9, 50.6], 1.271),
@@ -117,14 +119,7 @@ fn a_slow_probe_that_never_excites_the_mass_renders_the_massless_part() {
         ),
     ];
     for (object, seed) in objects {
-        let case = Case {
-            object: 0,
-            motion: "slow".to_string(),
-            delay_ms: 0.0,
-            preset: "franka-like".to_string(),
-            seed,
-        };
-        let f = run_case(&config, &object, &case).unwrap();
+        let f = run_object(&object, "slow", 0.0, seed, 20.0, StructureMode::Object);
         let (render, first) = (f.time_to_first_render_s, f.error_from_first_contact_pct);
         eprintln!(
             "{}: first render {render:?} s, from first contact {first:?} %, {} reduced sets",
@@ -151,20 +146,8 @@ fn a_slow_probe_that_never_excites_the_mass_renders_the_massless_part() {
 /// (19 % from the first contact).
 #[test]
 fn steps_that_hold_the_object_by_stiction_still_render_the_massless_part() {
-    let config = BenchmarkConfig {
-        seconds: 20.0,
-        ..BenchmarkConfig::default()
-    };
-    let object =
-        lab::benchmark::Object::from_terms("class-20", [1.337, 0.0, 46.12, 511.9, 12.36], 1.321);
-    let case = Case {
-        object: 0,
-        motion: "steps".to_string(),
-        delay_ms: 0.0,
-        preset: "franka-like".to_string(),
-        seed: 1021,
-    };
-    let f = run_case(&config, &object, &case).unwrap();
+    let object = Object::from_terms("class-20", [1.337, 0.0, 46.12, 511.9, 12.36], 1.321);
+    let f = run_object(&object, "steps", 0.0, 1021, 20.0, StructureMode::Object);
     let (render, first) = (f.time_to_first_render_s, f.error_from_first_contact_pct);
     eprintln!(
         "first render {render:?} s, from first contact {first:?} %, {} reduced sets",
@@ -184,21 +167,8 @@ fn steps_that_hold_the_object_by_stiction_still_render_the_massless_part() {
 /// the first contact.
 #[test]
 fn a_scene_that_does_not_say_gets_the_structure_each_object_needs() {
-    use lab::benchmark::{Object, StructureMode};
     let run = |object: &Object, seed: u64, structure: StructureMode| {
-        let config = BenchmarkConfig {
-            seconds: 60.0,
-            structure,
-            ..BenchmarkConfig::default()
-        };
-        let case = Case {
-            object: 0,
-            motion: "exp1".to_string(),
-            delay_ms: 0.0,
-            preset: "franka-like".to_string(),
-            seed,
-        };
-        run_case(&config, object, &case).unwrap()
+        run_object(object, "exp1", 0.0, seed, 60.0, structure)
     };
     let free = [
         (
@@ -258,20 +228,8 @@ fn a_scene_that_does_not_say_gets_the_structure_each_object_needs() {
 #[test]
 fn a_set_whose_contact_spring_is_too_soft_for_the_force_is_not_rendered() {
     use lab::benchmark::{Object, StructureMode};
-    let config = BenchmarkConfig {
-        seconds: 60.0,
-        structure: StructureMode::Whole,
-        ..BenchmarkConfig::default()
-    };
     let object = Object::from_terms("class-24", [0.5238, 0.0, 8.333, 203.0, 9.239], 0.4357);
-    let case = Case {
-        object: 24,
-        motion: "exp1".to_string(),
-        delay_ms: 0.0,
-        preset: "franka-like".to_string(),
-        seed: 2025,
-    };
-    let f = run_case(&config, &object, &case).unwrap();
+    let f = run_object(&object, "exp1", 0.0, 2025, 60.0, StructureMode::Whole);
     let first = f.error_from_first_contact_pct;
     eprintln!("from first contact {first:?} %, {:?}", f.rejections);
     assert!(first.is_some_and(|e| e < 500.0), "{first:?} %");

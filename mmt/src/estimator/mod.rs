@@ -268,9 +268,8 @@ pub struct Estimator {
     structure: Structure,
     /// A structure selection chose that is not in use yet, and for how many back-solves in a row.
     pending: Option<(Structure, u32)>,
-    /// The structure selection has run for this model.
-    selection_ran: bool,
-    /// This model's selection has settled once (publication may start).
+    /// This model's structure selection has left no change pending once (publication may
+    /// start).
     settled: bool,
     stats: EstimatorStats,
 }
@@ -321,7 +320,6 @@ impl Estimator {
             model_id: 0,
             structure: config.structure,
             pending: None,
-            selection_ran: false,
             settled: false,
             stats: EstimatorStats::default(),
             config,
@@ -507,7 +505,6 @@ impl Estimator {
         self.model_id += 1;
         self.structure = self.config.structure;
         self.pending = None;
-        self.selection_ran = false;
         self.settled = false;
     }
 

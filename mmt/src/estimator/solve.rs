@@ -11,7 +11,6 @@ use crate::model::{Structure, Theta, col, select};
 impl Estimator {
     pub(super) fn back_solve(&mut self, update: &mut Update) {
         self.stats.back_solves += 1;
-        self.select_structure();
         let weights = self.weights();
         let theta = self.rls.theta();
         let svf = &self.config.filter.svf;
@@ -21,6 +20,9 @@ impl Estimator {
             .information()
             .filter(|_| self.config.informed)
             .map(|i| i.with_correlation(correlation));
+        if let Some(info) = &information {
+            self.select_structure(&theta, info);
+        }
         // The per-coefficient back-solve first: where it passes it is the more accurate on
         // the parameters the motion barely excites (exp 1's mass: 1 % against 5 % informed).
         // Where it fails — a spring-mounted object, stiff or heavy objects far from exp 1's
@@ -126,10 +128,7 @@ impl Estimator {
     /// structure's early sets for an object that does not need all of it can be far off (a
     /// free object's with a ground spring: k1 3,900 N/m, k2 0.6 N/m, rendering 1.7 kN against
     /// 2 N on `mmt benchmark --seed 2 --structure select`'s class object 24).
-    fn structure_settled(&mut self) -> bool {
-        if self.selects() && !self.settled && self.selection_ran && self.pending.is_none() {
-            self.settled = true;
-        }
+    fn structure_settled(&self) -> bool {
         !self.selects() || self.settled
     }
 
@@ -139,51 +138,39 @@ impl Estimator {
             && matches!(self.config.structure, Structure::SlidingMass { .. })
     }
 
-    /// Scores the structures inside the configured one on the current estimate and takes the
-    /// choice once it has held for [`select::DWELL_S`] of back-solves in a row. The penalty
-    /// counts the independent samples behind θ̂: the time learnt, capped by the forgetting's
-    /// memory, times the filter's two samples per cut-off period, on each axis.
-    fn select_structure(&mut self) {
+    /// Scores the structures inside the configured one on the current estimate `theta`, `info`
+    /// and takes the choice once it has held for [`select::DWELL_S`] of back-solves in a row; the
+    /// model's sets may be published from the first back-solve that leaves no change pending.
+    /// The penalty counts the independent samples behind θ̂: the time learnt, capped by the
+    /// forgetting's memory, times the filter's two samples per cut-off period, on each axis.
+    fn select_structure(&mut self, theta: &Theta, info: &Information) {
         if !self.selects() {
             return;
         }
         let svf = &self.config.filter.svf;
-        let correlation = 1.0 / (2.0 * svf.cutoff_hz * svf.sample_period_s);
-        let Some(info) = self
-            .rls
-            .information()
-            .map(|i| i.with_correlation(correlation))
-        else {
-            return;
-        };
         let dt = svf.sample_period_s;
         let lambda = self.config.forgetting;
-        let memory_s = if lambda < 1.0 {
-            dt * (1.0 - lambda.powf(self.learned_s / dt)) / (1.0 - lambda)
+        let (memory_s, held_s) = if lambda < 1.0 {
+            let held_s = dt / (1.0 - lambda);
+            (held_s * (1.0 - lambda.powf(self.learned_s / dt)), held_s)
         } else {
-            self.learned_s
+            (self.learned_s, f64::INFINITY)
         };
         let per_s = 2.0 * svf.cutoff_hz * self.config.axes as f64;
         let samples = memory_s * per_s;
         // A memory too short ever to hold MIN_SAMPLES would otherwise never select, and never
         // publish.
-        let held = if lambda < 1.0 {
-            dt / (1.0 - lambda) * per_s
-        } else {
-            f64::INFINITY
-        };
-        if samples < select::MIN_SAMPLES.min(0.9 * held) {
+        if samples < select::MIN_SAMPLES.min(0.9 * held_s * per_s) {
             return;
         }
-        let theta = self.rls.theta();
-        let Some(selection) = select::select(self.config.structure, &theta, &info, samples) else {
+        let Some(selection) = select::select(self.config.structure, theta, info, samples) else {
             return;
         };
         let next = selection.next(self.structure);
-        self.selection_ran = true;
-        self.stats.selected = Some(self.structure);
         if next == self.structure {
             self.pending = None;
+            self.settled = true;
+            self.stats.selected = Some(next);
             return;
         }
         let seen = match self.pending {
@@ -196,6 +183,7 @@ impl Estimator {
         }
         self.structure = next;
         self.pending = None;
+        self.settled = true;
         self.stats.selected = Some(next);
         self.stats.structure_changes += 1;
         // The confidence windows are kept: their stillness check withholds a set whose terms

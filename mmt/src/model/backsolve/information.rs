@@ -110,11 +110,16 @@ impl Information {
     /// not in the information.
     pub fn variance(&self, c: usize) -> Option<f64> {
         let j = self.cols[..self.n].iter().position(|&x| x == c)?;
-        let p: f64 = self.d[j]
-            + (j + 1..self.n)
-                .map(|l| self.u[j][l] * self.u[j][l] * self.d[l])
-                .sum::<f64>();
-        Some(self.noise_variance() * p / (self.scale[j] * self.scale[j]))
+        Some(self.noise_variance() * self.covariance(j, j) / (self.scale[j] * self.scale[j]))
+    }
+
+    /// `(U D Uᵀ)_ab = Σ_{j ≥ max(a, b)} u_aj d_j u_bj` (factor rows `a`, `b`; scaled, per unit
+    /// noise variance).
+    fn covariance(&self, a: usize, b: usize) -> f64 {
+        let unit = |r: usize, j: usize| if r == j { 1.0 } else { self.u[r][j] };
+        (a.max(b)..self.n)
+            .map(|j| unit(a, j) * self.d[j] * unit(b, j))
+            .sum()
     }
 
     /// `δᵀ P⁻¹ δ` [N²]: how much worse `θ̂ + δ` predicts the data.
@@ -147,14 +152,10 @@ impl Information {
         // Identity outside the omitted block, zero right-hand side: one fixed-size factor.
         let mut p = SMatrix::<f64, N, N>::identity();
         let mut v = SVector::<f64, N>::zeros();
-        let unit = |a: usize, j: usize| if a == j { 1.0 } else { self.u[a][j] };
         for (i, &a) in rows.iter().enumerate() {
             v[i] = theta[self.cols[a]] * self.scale[a];
             for (l, &b) in rows.iter().enumerate() {
-                // (U D Uᵀ)_ab = Σ_{j ≥ max(a, b)} u_aj d_j u_bj.
-                p[(i, l)] = (a.max(b)..self.n)
-                    .map(|j| unit(a, j) * self.d[j] * unit(b, j))
-                    .sum();
+                p[(i, l)] = self.covariance(a, b);
             }
         }
         if !(p.iter().all(|x| x.is_finite()) && v.iter().all(|x| x.is_finite())) {
@@ -191,15 +192,34 @@ impl Information {
 mod tests {
     use super::*;
 
+    /// A three-coefficient factor `U D Uᵀ` with its scales.
+    const COLS: [usize; 3] = [col::A, col::C, col::F];
+    const SCALE: [f64; 3] = [2.0, 0.5, 4.0];
+    const U: [[f64; 3]; 3] = [[1.0, 0.3, -0.7], [0.0, 1.0, 0.2], [0.0, 0.0, 1.0]];
+    const D: [f64; 3] = [0.5, 2.0, 0.1];
+
+    fn info(output_energy: f64, noise_variance: f64) -> Information {
+        Information::new(
+            &COLS,
+            &SCALE,
+            |i, j| U[i][j],
+            &D,
+            output_energy,
+            noise_variance,
+        )
+        .unwrap()
+    }
+
+    /// `U D Uᵀ` (scaled), densely.
+    fn dense_p() -> nalgebra::Matrix3<f64> {
+        nalgebra::Matrix3::from_fn(|i, j| (0..3).map(|k| U[i][k] * D[k] * U[j][k]).sum())
+    }
+
     /// `|D^{−½} U⁻¹ δ|²` equals `δᵀ (U D Uᵀ)⁻¹ δ` computed densely.
     #[test]
     fn whitening_is_the_inverse_covariance_norm() {
-        let cols = [col::A, col::C, col::F];
-        let scale = [2.0, 0.5, 4.0];
-        let u = [[1.0, 0.3, -0.7], [0.0, 1.0, 0.2], [0.0, 0.0, 1.0]];
-        let d = [0.5, 2.0, 0.1];
-        let info = Information::new(&cols, &scale, |i, j| u[i][j], &d, 10.0, 0.0).unwrap();
-        let p = nalgebra::Matrix3::from_fn(|i, j| (0..3).map(|k| u[i][k] * d[k] * u[j][k]).sum());
+        let info = info(10.0, 0.0);
+        let p = dense_p();
         let mut delta = [0.0; N];
         delta[col::A] = 0.3;
         delta[col::C] = -1.1;
@@ -214,7 +234,7 @@ mod tests {
         );
         assert!((info.relative(&delta) - (want / 10.0).sqrt()).abs() < 1e-12);
         assert!(
-            Information::new(&cols, &scale, |i, j| u[i][j], &[0.5, 0.0, 1.0], 1.0, 0.0).is_none()
+            Information::new(&COLS, &SCALE, |i, j| U[i][j], &[0.5, 0.0, 1.0], 1.0, 0.0).is_none()
         );
     }
 
@@ -222,17 +242,10 @@ mod tests {
     /// (and the samples it stays correlated over).
     #[test]
     fn variance_is_the_unscaled_covariance_diagonal() {
-        let cols = [col::A, col::C, col::F];
-        let scale = [2.0, 0.5, 4.0];
-        let u = [[1.0, 0.3, -0.7], [0.0, 1.0, 0.2], [0.0, 0.0, 1.0]];
-        let d = [0.5, 2.0, 0.1];
-        let info = Information::new(&cols, &scale, |i, j| u[i][j], &d, 10.0, 0.3)
-            .unwrap()
-            .with_correlation(4.0);
-        let p: nalgebra::Matrix3<f64> =
-            nalgebra::Matrix3::from_fn(|i, j| (0..3).map(|k| u[i][k] * d[k] * u[j][k]).sum());
-        for (k, &c) in cols.iter().enumerate() {
-            let want = 0.3 * 4.0 * p[(k, k)] / (scale[k] * scale[k]);
+        let info = info(10.0, 0.3).with_correlation(4.0);
+        let p = dense_p();
+        for (k, &c) in COLS.iter().enumerate() {
+            let want = 0.3 * 4.0 * p[(k, k)] / (SCALE[k] * SCALE[k]);
             let got = info.variance(c).unwrap();
             assert!((got - want).abs() < 1e-12 * want, "{c}: {got} vs {want}");
         }
