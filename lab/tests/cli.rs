@@ -81,3 +81,47 @@ fn an_unknown_benchmark_structure_names_the_values() {
     assert!(stderr.contains("object, whole, select"), "{stderr}");
     assert!(!stderr.contains("backtrace"), "{stderr}");
 }
+
+/// `--out` (and `work-precision --plot`) naming a file where a directory must be: refused
+/// before anything runs, with one message and exit status 1. Before, `mmt benchmark` ran every
+/// case (minutes) and then failed to create the directory, losing the run; its files, and those
+/// of `mmt report` and `mmt work-precision`, were written in place, not atomically.
+#[test]
+fn an_output_directory_that_is_a_file_is_refused_before_the_run() {
+    let file = std::env::temp_dir().join(format!("mmt-out-is-a-file-{}", std::process::id()));
+    std::fs::write(&file, "x").unwrap();
+    let path = file.to_str().unwrap();
+    let plot = file.join("wp.svg");
+    let runs: [&[&str]; 3] = [
+        &[
+            "benchmark",
+            "--motions",
+            "exp1",
+            "--delays-ms",
+            "0",
+            "--out",
+            path,
+        ],
+        &["report", "missing.mcap", "--out", path],
+        &["work-precision", "--plot", plot.to_str().unwrap()],
+    ];
+    for args in runs {
+        let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+            .args(args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(path), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(&format!("{} ", args[args.len() - 2])),
+            "{args:?}: {stderr}"
+        );
+        assert!(!stderr.contains("cases"), "{args:?} ran: {stderr}");
+        assert!(!stderr.contains("backtrace"), "{args:?}: {stderr}");
+    }
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+    let _ = std::fs::remove_file(&file);
+}

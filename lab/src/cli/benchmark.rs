@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
 use sim::scene::SensorPreset;
 
@@ -56,6 +56,8 @@ pub struct BenchmarkArgs {
 
 pub fn run_cmd(args: BenchmarkArgs) -> Result<()> {
     let config = config(&args)?;
+    // Checked before the cases run (minutes), written atomically after.
+    let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let started = Instant::now();
     let quiet = args.json;
     let report = run(&config, &|done, total| {
@@ -67,21 +69,17 @@ pub fn run_cmd(args: BenchmarkArgs) -> Result<()> {
         }
     })?;
     let wall = started.elapsed().as_secs_f64();
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        std::fs::write(
-            dir.join("benchmark.json"),
-            serde_json::to_string_pretty(&report)?,
+    if let Some(dir) = &dir {
+        dir.write_atomic(
+            "benchmark.json",
+            serde_json::to_string_pretty(&report)?.as_bytes(),
         )?;
         let panels = error_panels(&report);
-        std::fs::write(
-            dir.join("error_vs_parameters.svg"),
-            svg(&panels, 3, (1500, 900))?,
+        dir.write_atomic(
+            "error_vs_parameters.svg",
+            svg(&panels, 3, (1500, 900))?.as_bytes(),
         )?;
-        std::fs::write(
-            dir.join("error_vs_parameters.png"),
-            png(&panels, 3, (1500, 900))?,
-        )?;
+        dir.write_atomic("error_vs_parameters.png", &png(&panels, 3, (1500, 900))?)?;
     }
     if args.json {
         return super::print_json(&report);

@@ -81,11 +81,10 @@ pub fn plot_dir(dir: &Path) -> Result<Vec<PathBuf>> {
         report.series_axes.normal,
     )
     .with_context(|| format!("{}", series_path.display()))?;
+    let out = rt::OutDir::prepare(dir)?;
     let mut written = Vec::new();
     for (name, bytes) in crate::report::plots(&series, &report.error_over_time)? {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
-        written.push(path);
+        written.push(out.write_atomic(&name, &bytes)?);
     }
     Ok(written)
 }

@@ -26,15 +26,14 @@ pub struct ReportArgs {
 
 pub fn run(args: ReportArgs) -> Result<()> {
     let started = std::time::Instant::now();
+    let dir = args.out.as_deref().map(rt::OutDir::prepare).transpose()?;
     let r = report_file(&args.file)?;
     for w in &r.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(dir) = &dir {
         for (name, bytes) in files(&r)? {
-            let path = dir.join(name);
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+            dir.write_atomic(&name, &bytes)?;
         }
     }
     // On stderr: the report on stdout stays the run's.

@@ -2,10 +2,10 @@
 
 use crate::analysis::work_precision::{Point, problems, work_precision};
 use crate::plot::{Panel, Series, png, svg};
-use anyhow::{Context, Result};
+use anyhow::{Result, anyhow, bail};
 use clap::Args;
 use mmt::render::integrators::Method;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Error against run time per integrator and step size.
@@ -24,10 +24,12 @@ pub struct WorkPrecisionArgs {
 }
 
 pub fn run(args: WorkPrecisionArgs) -> Result<()> {
+    // The plot's directory is checked before the timed runs, and the file written atomically.
+    let plot = args.plot.as_deref().map(plot_target).transpose()?;
     let epoch = Instant::now();
     let mut clock = || epoch.elapsed().as_nanos() as u64;
     let report = work_precision(&mut clock, args.repeats);
-    if let Some(path) = &args.plot {
+    if let Some((dir, name, path)) = &plot {
         let panels: Vec<Panel> = problems()
             .iter()
             .map(|p| Panel {
@@ -62,7 +64,7 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
         } else {
             svg(&panels, 3, (1500, 900))?.into_bytes()
         };
-        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        dir.write_atomic(name, &bytes)?;
     }
     if args.json {
         return super::print_json(&report);
@@ -85,4 +87,34 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The directory (checked) and file name of `--plot FILE`, and the file itself.
+fn plot_target(path: &Path) -> Result<(rt::OutDir, String, PathBuf)> {
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+        bail!(
+            "--plot {}: expected a file name (e.g. work_precision.svg)",
+            path.display()
+        );
+    };
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    // `OutError` names `--out`; the flag here is `--plot`.
+    let dir = rt::OutDir::prepare(parent).map_err(|e| match e {
+        rt::OutError::NotADirectory(p) => {
+            anyhow!(
+                "--plot {}: {} exists and is not a directory",
+                path.display(),
+                p.display()
+            )
+        }
+        rt::OutError::Io {
+            path: p,
+            what,
+            source,
+        } => anyhow::Error::new(source).context(format!("--plot {}: cannot {what}", p.display())),
+    })?;
+    Ok((dir, name.to_string(), path.to_path_buf()))
 }
