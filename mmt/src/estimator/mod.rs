@@ -28,6 +28,7 @@
 
 mod confidence;
 mod friction;
+mod gaps;
 mod solve;
 mod stats;
 
@@ -45,6 +46,12 @@ use thiserror::Error;
 
 /// Most axes one estimator serves (the two tangential axes).
 pub const MAX_AXES: usize = 2;
+
+/// Longest gap in the samples, in sample periods, that the filters are stepped over with the
+/// input interpolated between the samples either side (a robot's state stream over best-effort
+/// DDS loses about 1 % of its samples, one to a few in a row). A longer gap restarts the
+/// filters at the next sample (a robot bridge stops estimating after 50 ms without a state).
+pub const MAX_FILLED_PERIODS: u32 = 50;
 
 /// Settings of one estimator.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -262,6 +269,8 @@ pub struct Estimator {
     confirmed_this_model: bool,
     observer_started: bool,
     learned_s: f64,
+    /// Time [s] and tared input `(x, F)` of each axis of the last sample, for covering a gap.
+    last_sample: Option<(f64, [(f64, f64); MAX_AXES])>,
     model_id: u32,
     /// The structure back-solved and published: `config.structure`, or the one selection chose
     /// inside it.
@@ -317,6 +326,7 @@ impl Estimator {
             confirmed_this_model: false,
             observer_started: false,
             learned_s: 0.0,
+            last_sample: None,
             model_id: 0,
             structure: config.structure,
             pending: None,
@@ -391,8 +401,13 @@ impl Estimator {
             self.stats.rejected_samples += 1;
             return update;
         }
+        let missed = self.missed_periods(now_s);
         self.track_phase(now_s, in_contact, &mut update);
+        if missed > MAX_FILLED_PERIODS {
+            self.restart_after_gap(now_s);
+        }
         let dt = self.config.filter.svf.sample_period_s;
+        let mut inputs = [(0.0, 0.0); MAX_AXES];
         for (i, s) in samples[..n].iter().enumerate() {
             if self.phase == Phase::Free {
                 if self.tared {
@@ -402,24 +417,18 @@ impl Estimator {
                 }
             }
             let f = s.force_n - self.tare[i];
-            if !self.tared && self.phase == Phase::Free {
-                // First sample: start the filter in the steady state instead of ringing from 0.
-                self.filters[i].reset_steady(s.position_m, s.velocity_m_per_s, f);
-            }
-            let filter = &self.filters[i];
-            let shape = self
-                .observed
-                .and_then(|o| self.observers[i].step(&o, f, dt))
-                .unwrap_or_else(|| filter.smooth_sign(s.velocity_m_per_s));
-            self.regressions[i] = self.filters[i]
-                .step_with_shape(s.position_m, f, shape)
-                .with_constant(i);
+            inputs[i] = (s.position_m, f);
+            self.filter_axis(i, s, f, missed);
         }
         if self.phase == Phase::Free {
             self.tared = true;
         }
+        if missed <= MAX_FILLED_PERIODS {
+            self.stats.filled_samples += u64::from(missed);
+        }
+        self.last_sample = Some((now_s, inputs));
         let mode = if self.phase == Phase::Learning {
-            self.learned_s += dt;
+            self.learned_s += dt * f64::from(missed.min(MAX_FILLED_PERIODS) + 1);
             Mode::Learn
         } else {
             Mode::Pause

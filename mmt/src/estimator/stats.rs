@@ -38,6 +38,14 @@ pub struct EstimatorStats {
     /// Times the structure in use changed by selection.
     #[serde(default)]
     pub structure_changes: u64,
+    /// Sample periods with no sample (lost in transport) that the filters were stepped over
+    /// with the interpolated input ([`super::MAX_FILLED_PERIODS`]).
+    #[serde(default)]
+    pub filled_samples: u64,
+    /// Gaps longer than [`super::MAX_FILLED_PERIODS`] periods: the filters restarted at the
+    /// next sample and, in contact, learning waited out the onset guard again.
+    #[serde(default)]
+    pub gap_restarts: u64,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).
