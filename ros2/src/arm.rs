@@ -293,16 +293,15 @@ impl Arm {
             || node::RobotBridge::tool_m(&self.bridge).unwrap_or_default(),
             |t| std::array::from_fn(|k| t.1[k] + self.velocity[k] * ahead),
         );
+        // Held up for `steps` periods, the robot's own controller (which does not stall with
+        // this thread) went to the target along the way ([`SimBridge::step_periods`]).
         let target = Target {
             position_m: position,
             velocity_m_per_s: self.velocity,
             command_sample_time_ns: 0,
             holding: false,
         };
-        let mut s = self.bridge.step_world(&target);
-        for _ in 1..steps {
-            s = self.bridge.step_world(&target);
-        }
+        let s = self.bridge.step_periods(&target, steps);
         self.report.ticks += 1;
         // Stamped with the tick's time (what a driver's control loop stamps), not the moment of
         // publishing.
