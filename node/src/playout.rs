@@ -70,6 +70,8 @@ pub(super) struct Playout {
     last_received_ns: Option<i64>,
     /// When the path last reached a command, or when the first command arrived \[ns\].
     last_progress_ns: Option<i64>,
+    /// The path is at rest for want of commands (extrapolated as far as it goes).
+    stopped: bool,
 }
 
 /// What happened to a pushed command.
@@ -97,6 +99,7 @@ impl Playout {
             current: None,
             last_received_ns: None,
             last_progress_ns: None,
+            stopped: false,
         }
     }
 
@@ -126,6 +129,12 @@ impl Playout {
             *oldest = Some(c);
         }
         Push::Overflow
+    }
+
+    /// Whether the path handed on by the last [`Self::advance`] was at rest for want of
+    /// commands: extrapolated past the newest one as far as [`MAX_EXTRAPOLATION_NS`] goes.
+    pub(super) fn stopped(&self) -> bool {
+        self.stopped
     }
 
     /// Adds one arrival's lag and re-estimates it every [`ESTIMATE_EVERY`] arrivals (at once for
@@ -188,6 +197,10 @@ impl Playout {
             let limit = c.sample_time_ns.saturating_add(MAX_EXTRAPOLATION_NS);
             tau = tau.min(limit.max(self.last.map_or(limit, |(before, _)| before)));
         }
+        self.stopped = next.is_none()
+            && self
+                .current
+                .is_some_and(|c| tau.saturating_sub(c.sample_time_ns) >= MAX_EXTRAPOLATION_NS);
         let advanced = self.last.map_or(0, |(before, _)| tau - before);
         let smooth = advanced as f64 <= (1.0 + SLEW) * dt as f64 + 1.0;
         let rate = match self.last {

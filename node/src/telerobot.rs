@@ -53,6 +53,11 @@ pub struct TelerobotStats {
     pub ticks: u64,
     /// Ticks spent holding still for lack of fresh commands.
     pub holding_ticks: u64,
+    /// Ticks the playout's path was at rest for want of commands (extrapolated as far as it
+    /// goes); the estimators' new-object detectors are muted through them and the filters'
+    /// transient after.
+    #[serde(default)]
+    pub stopped_ticks: u64,
     /// Commands accepted.
     pub commands: u64,
     /// Commands dropped: duplicates, older than the one executing, or not finite.
@@ -174,6 +179,17 @@ impl TelerobotNode {
     pub fn target(&mut self, now_ns: i64, robot_position_m: [f64; 3]) -> Target {
         let (current, skipped) = self.playout.advance(now_ns);
         self.stats.skipped_commands += skipped as u64;
+        if self.playout.stopped() {
+            // The robot is stopped for want of commands, not by the operator: the force
+            // transient that follows is the motion's, not a new object's.
+            self.stats.stopped_ticks += 1;
+            for e in [&mut self.normal, &mut self.tangential]
+                .into_iter()
+                .flatten()
+            {
+                e.mute_new_object_detector();
+            }
+        }
         let fresh = self
             .playout
             .last_received_ns()

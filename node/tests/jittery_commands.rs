@@ -205,22 +205,35 @@ fn the_velocity_handed_to_the_robot_is_the_rate_of_its_path() {
     }
 }
 
-/// Issue 11's soaks under load, still open: a reset every few minutes, with the motion guard
-/// clamping a step just before. The operator's loop, starved by other work, sends a stall's
-/// commands late and together; the playout bridges 10 ms, then stops the path until they come
-/// (a velocity step the simulated robot takes at once), and the estimator resets its model.
-/// Today (seeds 1–3, 40 s, stalls of 30 ms every 2 s, 60 every 3 s, 15 every 1.5 s): worst kink
-/// 0.48/1.00/0.59 of the largest step, 3/5/2 resets, 12/86/0 commands skipped. A decaying
-/// envelope of the lag (so that a stall raises `L` for the next one) gave 2/8/1 resets: not
-/// kept. Run with `--ignored` to see it fail.
+/// Issue 11's soaks under load: a reset every few minutes, with the motion guard clamping a
+/// step just before. The operator's loop, starved by other work, sends a stall's commands late
+/// and together; the playout bridges 10 ms, then stops the path until they come (a velocity
+/// step the simulated robot takes at once: its damper's force swings), and the estimator took
+/// that transient for a new object: 5/6/3 resets (seeds 1–3, 40 s, stalls of 30 ms every 2 s,
+/// 60 every 3 s, 15 every 1.5 s; measured with the mute taken out; 3/5/2 when first written). The node now mutes the estimators' new-object detectors while
+/// the path is stopped for want of commands and for `detector_mute_s` after (as after an
+/// onset): none. The networked demo showed the same (a 25 ms stall, a 12 N swing, a reset 70 ms
+/// after the path moved again).
 #[test]
-#[ignore = "issue 11, open: a stalling operator loop still resets the model"]
-fn a_stalling_operator_loop_plays_a_smooth_path_and_no_model_is_reset() {
+fn a_stalling_operator_loop_resets_no_model() {
+    for (seed, stall) in [(1, (2000, 30)), (2, (3000, 60)), (3, (1500, 15))] {
+        let p = play_with_stalls(40.0, seed, Some(stall));
+        assert_eq!(p.new_objects, 0, "seed {seed}, stalls {stall:?} ms");
+    }
+}
+
+/// The same stalls, still open (issue 11): the path's kink. Worst kink 0.48/1.00/0.59 of the
+/// largest step, 12/86/0 commands skipped. A decaying envelope of the lag (so that a stall
+/// raises `L` for the next one) gave 2/8/1 resets before the detector was muted: not kept. Run
+/// with `--ignored` to see it fail.
+#[test]
+#[ignore = "issue 11, open: a stalling operator loop still kinks the path"]
+fn a_stalling_operator_loop_plays_a_smooth_path() {
     for (seed, stall) in [(1, (2000, 30)), (2, (3000, 60)), (3, (1500, 15))] {
         let p = play_with_stalls(40.0, seed, Some(stall));
         let kink = worst_kink(&p);
         assert!(
-            kink < 0.2 && p.new_objects == 0,
+            kink < 0.2,
             "seed {seed}, stalls {stall:?} ms: kink {kink:.2}, {} resets, {} skipped",
             p.new_objects,
             p.skipped

@@ -517,6 +517,15 @@ impl Estimator {
         self.settled = false;
     }
 
+    /// The motion is not the operator's (the robot was stopped for want of commands): the
+    /// new-object detector stays muted for [`EstimatorConfig::detector_mute_s`] from now, as
+    /// after a contact onset, so the force transient that follows is not taken for a new object.
+    pub fn mute_new_object_detector(&mut self) {
+        let updates = self.config.detector_mute_s / self.config.filter.svf.sample_period_s
+            * self.config.axes as f64;
+        self.rls.mute_detector(updates.round() as u32);
+    }
+
     /// The last confirmed set.
     pub fn latest(&self) -> Option<&Gated> {
         self.latest.as_ref()
