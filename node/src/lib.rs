@@ -31,6 +31,7 @@
 mod bridge;
 pub mod guard;
 mod history;
+mod observer;
 pub mod operator;
 mod playout;
 mod settings;
