@@ -2,7 +2,19 @@
 
 #![allow(clippy::unwrap_used)]
 
+use std::ffi::OsStr;
 use std::process::Command;
+
+/// Runs `mmt` with `args` and `RUST_BACKTRACE` set (a user's mistake must still print no
+/// backtrace): its exit status and stderr.
+fn mmt<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
+        .args(args)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    (out.status.code(), String::from_utf8(out.stderr).unwrap())
+}
 
 /// A scene path that is a directory: one message naming the path and the OS's reason once, exit
 /// status 1, and no backtrace even with `RUST_BACKTRACE` set (`main` returned the error to the
@@ -10,14 +22,9 @@ use std::process::Command;
 #[test]
 fn a_bad_path_prints_one_message_and_no_backtrace() {
     let dir = std::env::temp_dir();
-    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
-        .args(["experiment", "exp1", "--seconds", "1", "--scene"])
-        .arg(&dir)
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let scene = dir.to_str().unwrap();
+    let (status, stderr) = mmt(["experiment", "exp1", "--seconds", "1", "--scene", scene]);
+    assert_eq!(status, Some(1), "{stderr}");
     assert!(!stderr.contains("backtrace"), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains(&*dir.to_string_lossy()), "{stderr}");
@@ -29,13 +36,16 @@ fn a_bad_path_prints_one_message_and_no_backtrace() {
 fn a_refused_run_writes_no_recording() {
     let file = std::env::temp_dir().join(format!("mmt-refused-{}.mcap", std::process::id()));
     let _ = std::fs::remove_file(&file);
-    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
-        .args(["experiment", "exp1", "--seconds", "0.05", "--record"])
-        .arg(&file)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let record = file.to_str().unwrap();
+    let (status, stderr) = mmt([
+        "experiment",
+        "exp1",
+        "--seconds",
+        "0.05",
+        "--record",
+        record,
+    ]);
+    assert_eq!(status, Some(1), "{stderr}");
     assert!(
         stderr.contains("--seconds 0.05: expected in [1, 3600] s"),
         "{stderr}"
@@ -49,13 +59,8 @@ fn a_refused_run_writes_no_recording() {
 #[test]
 fn a_range_error_names_the_flag() {
     for args in [&["--delay-ms", "-5"][..], &["--delay-ms=-5"]] {
-        let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
-            .args(["experiment", "exp1", "--seconds", "5"])
-            .args(args)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8(out.stderr).unwrap();
-        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        let (status, stderr) = mmt(["experiment", "exp1", "--seconds", "5"].iter().chain(args));
+        assert_eq!(status, Some(1), "{stderr}");
         assert_eq!(
             stderr.trim(),
             "mmt: --delay-ms -5: expected in [0, 5000] ms"
@@ -67,13 +72,8 @@ fn a_range_error_names_the_flag() {
 /// takes, and no backtrace.
 #[test]
 fn an_unknown_benchmark_structure_names_the_values() {
-    let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
-        .args(["benchmark", "--structure", "nope"])
-        .env("RUST_BACKTRACE", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    let (status, stderr) = mmt(["benchmark", "--structure", "nope"]);
+    assert_eq!(status, Some(2), "{stderr}");
     assert!(
         stderr.contains("invalid value 'nope' for '--structure"),
         "{stderr}"
@@ -106,13 +106,8 @@ fn an_output_directory_that_is_a_file_is_refused_before_the_run() {
         &["work-precision", "--plot", plot.to_str().unwrap()],
     ];
     for args in runs {
-        let out = Command::new(env!("CARGO_BIN_EXE_mmt"))
-            .args(args)
-            .env("RUST_BACKTRACE", "1")
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8(out.stderr).unwrap();
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        let (status, stderr) = mmt(args);
+        assert_eq!(status, Some(1), "{args:?}: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
         assert!(stderr.contains(path), "{args:?}: {stderr}");
         assert!(

@@ -64,17 +64,15 @@ impl SimBridge {
         let n = periods as f64;
         let span_s = n / self.scene.rates.control_hz;
         let velocity = std::array::from_fn(|k| (to[k] - from[k]) / span_s);
-        let mut last = None;
-        for j in 1..=periods {
-            let a = j as f64 / n;
-            let step = Target {
-                position_m: std::array::from_fn(|k| from[k] + a * (to[k] - from[k])),
-                velocity_m_per_s: velocity,
-                ..*target
-            };
-            last = Some(self.step_world(&step));
+        let along = |a: f64| Target {
+            position_m: std::array::from_fn(|k| from[k] + a * (to[k] - from[k])),
+            velocity_m_per_s: velocity,
+            ..*target
+        };
+        for j in 1..periods {
+            self.step_world(&along(j as f64 / n));
         }
-        last.unwrap_or_else(|| self.step_world(target))
+        self.step_world(&along(1.0))
     }
 
     /// The world (its surface frame, for the camera and the reports).

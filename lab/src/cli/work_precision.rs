@@ -29,7 +29,7 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
     let epoch = Instant::now();
     let mut clock = || epoch.elapsed().as_nanos() as u64;
     let report = work_precision(&mut clock, args.repeats);
-    if let Some((dir, name, path)) = &plot {
+    if let (Some((dir, name)), Some(path)) = (&plot, &args.plot) {
         let panels: Vec<Panel> = problems()
             .iter()
             .map(|p| Panel {
@@ -89,8 +89,8 @@ pub fn run(args: WorkPrecisionArgs) -> Result<()> {
     Ok(())
 }
 
-/// The directory (checked) and file name of `--plot FILE`, and the file itself.
-fn plot_target(path: &Path) -> Result<(rt::OutDir, String, PathBuf)> {
+/// The directory (checked) and file name of `--plot FILE`.
+fn plot_target(path: &Path) -> Result<(rt::OutDir, String)> {
     let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
         bail!(
             "--plot {}: expected a file name (e.g. work_precision.svg)",
@@ -116,5 +116,5 @@ fn plot_target(path: &Path) -> Result<(rt::OutDir, String, PathBuf)> {
             source,
         } => anyhow::Error::new(source).context(format!("--plot {}: cannot {what}", p.display())),
     })?;
-    Ok((dir, name.to_string(), path.to_path_buf()))
+    Ok((dir, name.to_string()))
 }

@@ -479,9 +479,7 @@ impl Estimator {
             self.next_back_solve_s = now_s;
             // The filters still hold some of the free-motion inputs, which the contact model cannot
             // explain: keep that tail from looking like a new object.
-            let updates = self.config.detector_mute_s / self.config.filter.svf.sample_period_s
-                * self.config.axes as f64;
-            self.rls.mute_detector(updates.round() as u32);
+            self.mute_new_object_detector();
         }
     }
 
