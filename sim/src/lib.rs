@@ -6,8 +6,9 @@
 //!   ≥ 10 kHz with Karnopp stick–slip friction ([`friction`]) and sensor noise ([`noise`]);
 //! - [`world`]: the object in 3-D — a surface frame, the normal contact and two tangential
 //!   axes — as the robot meets it;
-//! - [`camera`]: the simulated depth camera over the scene's surface, and [`synthetic`] clouds
-//!   (planes, boxes, spheres with noise, dropout and motion);
+//! - [`camera`]: the simulated depth camera over the scene's surface, with a real camera's
+//!   clustered holes and depth-dependent noise ([`holes`]), and [`synthetic`] clouds (planes,
+//!   boxes, spheres with noise, dropout and motion);
 //! - [`scene`]: scenes (TOML, every field validated, errors naming the field, the value and the
 //!   range), and [`trajectory`]: the scripted tool trajectories of the experiments;
 //! - [`workload`]: the standard contact workload the contact benchmarks measure.
@@ -19,6 +20,7 @@
 pub mod bridge;
 pub mod camera;
 pub mod friction;
+pub mod holes;
 pub mod noise;
 pub mod object;
 pub mod scene;
