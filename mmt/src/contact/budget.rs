@@ -5,8 +5,9 @@
 //! # The model
 //!
 //! - **Per tick.** A proxy step visits the points within its largest query radius `R`
-//!   ([`query_radius_m`]: half a sweep segment plus `r3` plus the reuse margin, 46 mm at the
-//!   exp-1 radii, 18.5 mm at the defaults) once per query, and a worst tick runs several queries
+//!   ([`query_radius_m`]: the wide plane's `2 r3` where the proxy bridges holes, else half a
+//!   sweep segment plus `r3`, plus the reuse margin: 61 mm at the exp-1 radii, 24.5 mm at the
+//!   defaults) once per query, and a worst tick runs several queries
 //!   (two sweeps of up to four segments) and the surface passes over the same points. Its cost
 //!   is therefore `fixed + per_point · P`, `P` the most points any ball of radius `R` holds. `P`
 //!   comes from the cloud's density: [`points_in_ball`] for any point set (counts on a grid of

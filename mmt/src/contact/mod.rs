@@ -12,12 +12,15 @@
 //! - [`distance`]: eq. 24–29, the analytic shortest-distance roots (eq. 29 corrected).
 //! - [`CloudIndex`] / [`BruteForce`]: radius queries behind one [`Neighbours`] trait, so the
 //!   benchmark's brute-force proxy is the same code on a different backend.
+//! - [`bridge`]: where the points are a plane with holes in it, the fitted plane is the surface
+//!   (a depth camera's dropout, hole patches and noise do not let the proxy through).
 //! - [`budget`]: whether a cloud can run at the loop rate (points in the query ball, frame
 //!   size against the camera rate), estimated before it reaches a loop.
 //! - [`SurfaceFrame`]: normal and two tangents, right-handed, chosen deterministically.
 //!
 //! Units: metres, seconds; every position is in the world frame of the cloud.
 
+pub mod bridge;
 pub mod budget;
 mod config;
 mod density;

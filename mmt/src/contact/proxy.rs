@@ -37,6 +37,15 @@
 //!   `r3`).
 //! - **Entrenched step (eq. 18).** "All points" is the points within `r1` (those the step must
 //!   clear); without a normal at that instant the last normal is used.
+//! - **Holes and noise (issue 14).** Where the plane fitted over the points within `r3` (or
+//!   `2 r3`) bridges them ([`super::bridge`]), the distances of eq. 15–19 are to that plane,
+//!   not to the nearest point: contact is the plane within `r2`, a free step stops
+//!   `(r1+r2)/2` from it, an entrenched step clears it to `(r1+r2)/2`, and pushing in also
+//!   settles the proxy down to `(r1+r2)/2` (eq. 22 alone leaves it wherever it first came
+//!   within `r2`, and the plane's frame-to-frame wobble would then take it beyond now and
+//!   then). Near points a free step moves at most the fit's support less `(r1+r2)/2` per tick,
+//!   so the plane it was checked against holds along all of it. [`ProxyConfig::bridge_holes`]
+//!   `= false` is the thesis's proxy.
 //!
 //! # Allocation
 //!
@@ -71,6 +80,11 @@ const SWEEP_SEGMENT_OF_R3: f64 = 1.0;
 /// Most segments one sweep covers in a tick; a longer move continues on the next tick. Bounds
 /// the queries per step (two sweeps: the velocity step and the free step).
 const MAX_SWEEP_SEGMENTS: usize = 4;
+
+/// Where the points within `r3` do not bridge, the plane is fitted again over this many `r3`
+/// ([`super::bridge`]): holes up to about `0.85 · 2 r3` in radius (5 cm at the exp-1 radii)
+/// are bridged from anywhere over them.
+const WIDE_OF_R3: f64 = 2.0;
 
 /// A query asks for this fraction of `r3` beyond the ball it needs, so that the next ticks,
 /// while the proxy moves less than that, reuse its answer instead of querying again (every pass
@@ -174,10 +188,16 @@ impl Proxy {
             [0.0; 3]
         };
         let step = match (step_state, normal) {
-            (ContactState::Free, _) => self.free_step(cloud, u),
-            (ContactState::Entrenched, Some(n)) => self.entrenched_step(n),
+            (ContactState::Free, _) => self.free_step(cloud, u, &here),
+            (ContactState::Entrenched, Some(n)) => self.entrenched_step(n, &here),
             (ContactState::Entrenched, None) => [0.0; 3],
-            (ContactState::Contact, n) => contact_step(u, n, &c),
+            (ContactState::Contact, n) => {
+                let slide = contact_step(u, n, &c);
+                match (n, here.plane_distance) {
+                    (Some(n), Some(height)) => vec3::add(slide, settle(u, n, height, &c)),
+                    _ => slide,
+                }
+            }
         };
         self.position = vec3::add(self.position, step);
 
@@ -207,14 +227,37 @@ impl Proxy {
         }
     }
 
-    /// Eq. 16–17: toward the HIP until `(r1+r2)/2` from the first point in the way.
-    fn free_step<N: Neighbours>(&mut self, cloud: &N, u: Vec3) -> Vec3 {
+    /// Eq. 16–17: toward the HIP until `(r1+r2)/2` from the first point in the way — or, where
+    /// the fitted plane bridges the points around the proxy (`here`), from that plane.
+    ///
+    /// Near points (any within `r3`), one tick moves at most `r3 − (r1+r2)/2`: every point the
+    /// moving sphere can meet is then among those `here` was computed from, so a bridging plane
+    /// holds along the whole move and a hole cannot be crossed within one step (`r3 − 5 mm` per
+    /// millisecond at the exp-1 radii: 25 m/s, beyond any hand).
+    fn free_step<N: Neighbours>(&mut self, cloud: &N, u: Vec3, here: &LocalSurface) -> Vec3 {
         let len = vec3::norm(u);
         if len <= 0.0 {
             return [0.0; 3];
         }
         let dir = vec3::scale(u, 1.0 / len);
-        let d = self.sweep(cloud, dir, len);
+        let c = self.config;
+        let near = here.count > 0;
+        let reach = if near {
+            len.min((here.support_m - c.rest_distance_m()).max(0.0))
+        } else {
+            len
+        };
+        let d = match (here.plane_distance, here.normal) {
+            (Some(height), Some(n)) if near => {
+                let approach = -vec3::dot(n, dir);
+                if approach > 0.0 {
+                    reach.min(((height - c.rest_distance_m()) / approach).max(0.0))
+                } else {
+                    reach
+                }
+            }
+            _ => self.sweep(cloud, dir, reach),
+        };
         if d >= len {
             // Unobstructed: land exactly on the HIP (no rounding of dir·len).
             u
@@ -268,9 +311,13 @@ impl Proxy {
         touch.min(reach)
     }
 
-    /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away.
-    fn entrenched_step(&self, n: Vec3) -> Vec3 {
+    /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away — or, where
+    /// the fitted plane bridges the points (`here`), until that plane is.
+    fn entrenched_step(&self, n: Vec3, here: &LocalSurface) -> Vec3 {
         let c = &self.config;
+        if let Some(height) = here.plane_distance {
+            return vec3::scale(n, (c.rest_distance_m() - height).max(0.0));
+        }
         let (a, r1_sq) = (c.rest_distance_m(), c.r1_m * c.r1_m);
         let d = self
             .scratch
@@ -310,17 +357,42 @@ fn contact_step(u: Vec3, normal: Option<Vec3>, c: &ProxyConfig) -> Vec3 {
     }
 }
 
-/// The largest ball the proxy queries [m]: a sweep segment's (`seg/2 + r3`) or the surface's
-/// (`r3`), plus the reuse margin.
-pub(super) fn max_query_radius_m(c: &ProxyConfig) -> f64 {
-    let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
-    0.5 * seg + c.r3_m.max(c.rest_distance_m()) + QUERY_MARGIN_OF_R3 * c.r3_m
+/// On a bridging plane ([`super::bridge`]), pushing in (`n̂ᵀu < 0`) also settles the proxy onto
+/// the plane, down to `(r1 + r2)/2` from it: where eq. 22 alone leaves it wherever it first came
+/// within `r2`, the plane's wobble from frame to frame (noise, holes) would take it beyond `r2`
+/// now and then, and contact would flicker. Never toward the plane otherwise, never past
+/// `(r1 + r2)/2`.
+fn settle(u: Vec3, n: Vec3, height: f64, c: &ProxyConfig) -> Vec3 {
+    if vec3::dot(n, u) < 0.0 && height > c.rest_distance_m() {
+        vec3::scale(n, c.rest_distance_m() - height)
+    } else {
+        [0.0; 3]
+    }
 }
 
+/// The largest ball the proxy queries [m]: a sweep segment's (`seg/2 + r3`), the surface's
+/// (`r3`) or, bridging holes, the wide plane's (`2 r3`), plus the reuse margin.
+pub(super) fn max_query_radius_m(c: &ProxyConfig) -> f64 {
+    let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
+    let sweep = 0.5 * seg + c.r3_m.max(c.rest_distance_m());
+    let wide = if c.bridge_holes {
+        WIDE_OF_R3 * c.r3_m
+    } else {
+        0.0
+    };
+    sweep.max(wide) + QUERY_MARGIN_OF_R3 * c.r3_m
+}
+
+/// Eq. 15's states from the distance to the surface: the bridging plane's where there is one
+/// ([`super::bridge`]), else the nearest point's.
 fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {
-    if s.nearest_d2 < c.r1_m * c.r1_m {
+    let d2 = match s.plane_distance {
+        Some(height) => height * height.abs(),
+        None => s.nearest_d2,
+    };
+    if d2 < c.r1_m * c.r1_m {
         ContactState::Entrenched
-    } else if s.nearest_d2 <= c.r2_m * c.r2_m {
+    } else if d2 <= c.r2_m * c.r2_m {
         ContactState::Contact
     } else {
         ContactState::Free
@@ -377,6 +449,10 @@ impl Scratch {
     /// Eq. 14–15 at `at` (reusing the last result when neither the cloud nor `at` changed);
     /// afterwards the buffer holds every point within `r3` of `at`. The surface point costs a
     /// pass of its own: asked for only where it is reported.
+    ///
+    /// Where the points within `r3` do not bridge (an edge, or a hole too wide for `r3`), the
+    /// plane is fitted once more over [`WIDE_OF_R3`]` · r3`: a hole of several centimetres is
+    /// surrounded at that scale, an edge is not ([`super::bridge`]).
     fn surface_at<N: Neighbours>(
         &mut self,
         cloud: &N,
@@ -391,15 +467,39 @@ impl Scratch {
         {
             return surface;
         }
-        let surface = local_surface(
-            at,
-            &self.buf,
-            c.r1_m,
-            c.r3_m,
-            c.normal_estimator,
-            with_point,
-        );
+        let mut surface = self.surface_over(at, c, c.r3_m, with_point);
+        if c.bridge_holes && surface.plane_distance.is_none() {
+            let wide = WIDE_OF_R3 * c.r3_m;
+            self.ensure(cloud, at, wide, QUERY_MARGIN_OF_R3 * c.r3_m);
+            let bridged = self.surface_over(at, c, wide, with_point);
+            if bridged.plane_distance.is_some() {
+                surface = bridged;
+            }
+        }
         self.surface = Some((at, with_point, surface));
         surface
+    }
+
+    /// Eq. 14–15 at `at` over the buffer's points within `support_m` (which it must hold).
+    fn surface_over(
+        &self,
+        at: Vec3,
+        c: &ProxyConfig,
+        support_m: f64,
+        with_point: bool,
+    ) -> LocalSurface {
+        // A band of −1 bridges nothing (no residual is below it).
+        let band = if c.bridge_holes {
+            c.r2_m - c.r1_m
+        } else {
+            -1.0
+        };
+        local_surface(
+            at,
+            &self.buf,
+            (c.r1_m, support_m, band),
+            c.normal_estimator,
+            with_point,
+        )
     }
 }

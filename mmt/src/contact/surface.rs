@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::bridge;
 use super::neighbours::Neighbour;
 use crate::vec3::{self, Vec3};
 
@@ -94,6 +95,13 @@ pub(crate) struct LocalSurface {
     pub nearest_d2: f64,
     /// Points within `r3`.
     pub count: usize,
+    /// Distance [m] from `centre` to the fitted plane along `normal`, where that plane bridges
+    /// the points (planar within the noise band and surrounding the foot of `centre`; see
+    /// [`super::bridge`]); `None` elsewhere, where the points themselves are the surface.
+    pub plane_distance: Option<f64>,
+    /// Radius of the ball the surface was computed over [m] (`r3`, or wider where only a wider
+    /// plane bridges the points).
+    pub support_m: f64,
 }
 
 /// Below this ratio `|n'| / Σψ` the weighted directions of eq. 14 cancel and give no direction.
@@ -103,20 +111,21 @@ const DEGENERATE_NORMAL: f64 = 1e-9;
 /// its smallest (the points spread in two directions, not along a line).
 const PLANARITY: f64 = 2.0;
 
-/// Eq. 14–15 at `centre` over the neighbours within `r3` (others in the slice are ignored).
-/// The slice is summed in its order: the same slice gives the same bits; another backend's order
-/// agrees to rounding.
+/// Eq. 14–15 at `centre` over the neighbours within `r3` (others in the slice are ignored),
+/// and whether the fitted plane bridges them there (points within `band_m` of it; `r2 − r1`
+/// for the proxy, [`super::bridge`]). The slice is summed in its order: the same slice gives the
+/// same bits; another backend's order agrees to rounding.
 pub(crate) fn local_surface(
     centre: Vec3,
     neighbours: &[Neighbour],
-    r1: f64,
-    r3: f64,
+    (r1, r3, band_m): (f64, f64, f64),
     estimator: NormalEstimator,
     with_point: bool,
 ) -> LocalSurface {
     let psi = Wendland::new(r1, r3);
     let normal;
     let sums;
+    let mut fit = None;
     match estimator {
         NormalEstimator::WeightedDirections => {
             sums = Sums::gather::<true>(centre, neighbours, &psi);
@@ -127,7 +136,9 @@ pub(crate) fn local_surface(
             // Orient toward the proxy: the proxy sits on the free side of the weighted
             // centroid. Where that is ambiguous, or the points span no plane, eq. 14 decides.
             let away = vec3::scale(sums.m1, -1.0);
-            normal = match plane_normal(&sums) {
+            let plane = plane_normal(&sums);
+            fit = plane.map(|(_, residual)| residual);
+            normal = match plane.map(|(n, _)| n) {
                 Some(n) if vec3::dot(n, away).abs() > 1e-6 * vec3::norm(away) => {
                     Some(if vec3::dot(n, away) < 0.0 {
                         vec3::scale(n, -1.0)
@@ -153,22 +164,49 @@ pub(crate) fn local_surface(
     // Weights by the 3-D distance favour the points noise moved toward the proxy, which puts the
     // surface too close to it by a fraction of the noise (a −5 % stiffness bias on a 2000 N/m
     // wall at 0.5 mm noise, measured); in-plane distances do not depend on that noise.
+    //
+    // It is then slid along the fitted plane to the foot of `centre`: the same plane, the same
+    // height along this normal, but a point next to the tool. A caller that measures the height
+    // along another normal (the tracker's, frozen at the onset) is then off by the angle between
+    // the two times the tool's distance from the point — millimetres from the foot, where the
+    // centroid is up to r3 away over a hole (measured: 1–2° of onset tilt on a noisy cloud with
+    // holes put the centroid's height 0.5–1 mm off, 10–35 % of the force).
     let centroid = if !with_point {
         None
     } else {
         match normal {
-            Some(n) => in_plane_centroid(centre, neighbours, &psi, n),
+            Some(n) => in_plane_centroid(centre, neighbours, &psi, n)
+                .map(|c| vec3::sub(centre, vec3::scale(n, vec3::dot(n, vec3::sub(centre, c))))),
             None => None,
         }
         .or_else(|| {
             (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
         })
     };
+    let plane_distance = match (normal, fit) {
+        (Some(n), Some(residual))
+            if bridge::bridges(
+                centre,
+                neighbours,
+                r3,
+                n,
+                residual,
+                band_m,
+                sums.effective(),
+            ) =>
+        {
+            // The plane passes through the weighted mean, `centre + m1/Σψ`.
+            Some(-vec3::dot(n, sums.m1) / sums.weight)
+        }
+        _ => None,
+    };
     LocalSurface {
         normal,
         centroid,
         nearest_d2: sums.nearest_d2,
         count: sums.count,
+        plane_distance,
+        support_m: r3,
     }
 }
 
@@ -230,6 +268,8 @@ struct Sums {
     nearest_d2: f64,
     /// `Σψ`.
     weight: f64,
+    /// `Σψ²`: with `Σψ`, the fit's effective number of points `(Σψ)²/Σψ²` (Kish).
+    weight2: f64,
     /// `Σψ y`.
     m1: Vec3,
     /// `Σψ y yᵀ`: xx, xy, xz, yy, yz, zz.
@@ -250,6 +290,7 @@ impl Sums {
             count: 0,
             nearest_d2: f64::INFINITY,
             weight: 0.0,
+            weight2: 0.0,
             m1: [0.0; 3],
             m2: [0.0; 6],
             directions: [0.0; 3],
@@ -269,6 +310,7 @@ impl Sums {
             }
             let wy = vec3::scale(y, w);
             s.weight += w;
+            s.weight2 += w * w;
             s.m1 = vec3::add(s.m1, wy);
             s.m2[0] += wy[0] * y[0];
             s.m2[1] += wy[0] * y[1];
@@ -278,6 +320,16 @@ impl Sums {
             s.m2[5] += wy[2] * y[2];
         }
         s
+    }
+
+    /// The fit's effective number of points, `(Σψ)²/Σψ²` (Kish): the full count where the
+    /// weights are equal, a few where a few near points outweigh the rest.
+    fn effective(&self) -> f64 {
+        if self.weight2 > 0.0 {
+            self.weight * self.weight / self.weight2
+        } else {
+            0.0
+        }
     }
 
     /// Eq. 14 normalised, `None` when the directions cancel.
@@ -290,10 +342,11 @@ impl Sums {
     }
 }
 
-/// Unit normal (either sign) of the weighted least-squares plane through the points: the
-/// eigenvector of the smallest eigenvalue of their weighted covariance. `None` when the points
-/// do not span a plane.
-fn plane_normal(s: &Sums) -> Option<Vec3> {
+/// Unit normal (either sign) of the weighted least-squares plane through the points — the
+/// eigenvector of the smallest eigenvalue of their weighted covariance — and their weighted RMS
+/// distance to that plane [m] (the eigenvalue's root). `None` when the points do not span a
+/// plane.
+fn plane_normal(s: &Sums) -> Option<(Vec3, f64)> {
     if s.weight <= 0.0 || !s.weight.is_finite() {
         return None;
     }
@@ -306,7 +359,7 @@ fn plane_normal(s: &Sums) -> Option<Vec3> {
     if !(middle > 0.0 && middle >= PLANARITY * smallest.max(0.0)) {
         return None;
     }
-    vec3::normalize(v)
+    Some((vec3::normalize(v)?, smallest.max(0.0).sqrt()))
 }
 
 /// Eigenvalues (ascending) of a symmetric 3×3 matrix and the eigenvector of the smallest, in
@@ -458,8 +511,9 @@ mod tests {
                 point: [i as f64 * 0.001, j as f64 * 0.001, 0.0],
             })
             .collect();
-        let at =
-            |centre: Vec3, estimator| local_surface(centre, &points, 0.001, 0.006, estimator, true);
+        let at = |centre: Vec3, estimator| {
+            local_surface(centre, &points, (0.001, 0.006, 0.002), estimator, true)
+        };
         for estimator in [
             NormalEstimator::WeightedDirections,
             NormalEstimator::WeightedPlaneFit,

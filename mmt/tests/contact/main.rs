@@ -7,5 +7,6 @@
 mod determinism;
 mod figures;
 mod frames;
+mod holes;
 mod moving;
 mod support;

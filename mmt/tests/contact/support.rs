@@ -12,6 +12,14 @@ pub fn config() -> ProxyConfig {
     ProxyConfig::default()
 }
 
+/// The thesis's proxy: points only, no plane bridging the holes (appendix C as printed).
+pub fn points_only() -> ProxyConfig {
+    ProxyConfig {
+        bridge_holes: false,
+        ..config()
+    }
+}
+
 /// A square plane patch of `size` [m] through `origin` with outward `normal`.
 pub fn plane(normal: [f64; 3], origin: [f64; 3], size: f64) -> SceneObject {
     SceneObject::fixed(

@@ -49,8 +49,9 @@ fn the_grid_bound_is_the_cell_bound_of_a_grid() {
             "{computed} vs {formula}"
         );
     }
-    // The exp-1 window that stalled the loops (0.25 m at 0.113 mm, 4.9 M points): over half
-    // a million points really in the 46 mm query ball, a bound of a million.
+    // The exp-1 window that stalled the loops (0.25 m at 0.113 mm, 4.9 M points): about a
+    // million points really in the 61 mm query ball (the wide plane's, 2 r3 + the margin), a
+    // bound of 1.8 million.
     let exp1 = ProxyConfig {
         r1_m: 0.004,
         r2_m: 0.006,
@@ -58,8 +59,14 @@ fn the_grid_bound_is_the_cell_bound_of_a_grid() {
         ..ProxyConfig::default()
     };
     let r = query_radius_m(&exp1);
-    assert!((r - 0.04625).abs() < 1e-12, "{r}");
-    assert_eq!(grid_points_in_ball(0.000113, r), Ok(1024 * 1024));
+    assert!((r - 0.06125).abs() < 1e-12, "{r}");
+    assert_eq!(grid_points_in_ball(0.000113, r), Ok(1356 * 1356));
+    // The thesis's proxy (no bridging) queries half a sweep segment + r3: 46.25 mm.
+    let points_only = ProxyConfig {
+        bridge_holes: false,
+        ..exp1
+    };
+    assert!((query_radius_m(&points_only) - 0.04625).abs() < 1e-12);
 }
 
 #[test]
@@ -158,7 +165,7 @@ fn the_budget_refuses_the_finding_and_passes_the_scenes() {
         );
         let e = b.check(&exp1, &load).unwrap_err();
         assert!(matches!(e, OverBudget::Step { .. }), "{e}");
-        assert!(e.to_string().contains("46.2 mm query radius"), "{e}");
+        assert!(e.to_string().contains("61.2 mm query radius"), "{e}");
         // Growing the spacing by the factor brings both parts in.
         let f = b.spacing_factor(&exp1, &load);
         let s = spacing * f * 1.001;
