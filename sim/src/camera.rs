@@ -1,17 +1,19 @@
 //! The simulated depth camera of a scene.
 
+use crate::holes::{self, HolePatches};
 use crate::scene::{CloudKind, Scene, WindowCentre};
 use crate::world::World;
 use mmt::cloud::{CloudError, CloudFrame, Pose};
 use mmt::vec3;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Normal};
+use rand_distr::{Distribution, Normal, StandardNormal};
 use rand_pcg::Pcg64;
 
 /// The simulated depth camera: the object's (large) contact face seen in a window of the scene's
 /// `cloud.size_m` centred on the tool or on the surface point (`cloud.centre`), sampled on a grid
 /// fixed to the object — the points move with the object as it slides — with the scene's noise
-/// and dropout.
+/// (per coordinate, and along the ray growing with the range), random dropout, and hole patches
+/// fixed to the face ([`crate::holes`]).
 pub struct Camera {
     enabled: bool,
     moving: bool,
@@ -20,6 +22,9 @@ pub struct Camera {
     rng: Pcg64,
     noise: Option<Normal<f64>>,
     dropout: f64,
+    holes: HolePatches,
+    depth_noise_per_m: f64,
+    camera_distance_m: f64,
     spacing_m: f64,
     window_m: [f64; 2],
     follows_tool: bool,
@@ -27,7 +32,7 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// The camera of `scene`, its noise seeded from `seed`.
+    /// The camera of `scene`, its noise (and its hole patches) seeded from `seed`.
     pub fn new(scene: &Scene, seed: u64) -> Self {
         let c = &scene.cloud;
         Camera {
@@ -40,6 +45,9 @@ impl Camera {
                 .then(|| Normal::new(0.0, c.noise_m).ok())
                 .flatten(),
             dropout: c.dropout,
+            holes: HolePatches::new(c.holes, c.hole_radius_m, seed.wrapping_add(404)),
+            depth_noise_per_m: c.depth_noise_per_m,
+            camera_distance_m: c.camera_distance_m,
             spacing_m: c.spacing_m,
             window_m: c.size_m,
             follows_tool: c.centre == WindowCentre::Tool,
@@ -60,40 +68,72 @@ impl Camera {
             return Ok(None);
         }
         self.next_ns = now_ns + self.period_ns;
-        let f = world.frame();
+        let f = *world.frame();
         let centre = if self.follows_tool {
             let rel = vec3::sub(tool_m, self.origin);
             [vec3::dot(rel, f.tangent1), vec3::dot(rel, f.tangent2)]
         } else {
             [0.0; 2]
         };
-        let s = self.spacing_m;
-        // Grid indices of the object's face inside the window (the grid moves with the object).
-        let range = |axis: usize| {
-            let lo = ((centre[axis] - 0.5 * self.window_m[axis] - offset[axis]) / s).ceil() as i64;
-            let hi = ((centre[axis] + 0.5 * self.window_m[axis] - offset[axis]) / s).floor() as i64;
-            lo..=hi
+        let origin = self.origin;
+        let on_face = move |u: f64, v: f64| {
+            vec3::add(
+                origin,
+                vec3::add(vec3::scale(f.tangent1, u), vec3::scale(f.tangent2, v)),
+            )
         };
+        // Above the window's centre, along the normal.
+        let camera_m = vec3::add(
+            on_face(centre[0], centre[1]),
+            vec3::scale(f.normal, self.camera_distance_m),
+        );
+        let s = self.spacing_m;
+        // The window in face coordinates (the grid and the holes move with the object).
+        let window = |axis: usize| {
+            let half = 0.5 * self.window_m[axis];
+            [
+                centre[axis] - half - offset[axis],
+                centre[axis] + half - offset[axis],
+            ]
+        };
+        let (face_u, face_v) = (window(0), window(1));
+        let disks = self.holes.disks_in(face_u, face_v);
+        let range = |r: [f64; 2]| (r[0] / s).ceil() as i64..=(r[1] / s).floor() as i64;
         let mut points = Vec::new();
-        for i in range(0) {
-            for j in range(1) {
+        for i in range(face_u) {
+            for j in range(face_v) {
                 if self.dropout > 0.0 && self.rng.random::<f64>() < self.dropout {
                     continue;
                 }
-                let (u, v) = (offset[0] + i as f64 * s, offset[1] + j as f64 * s);
-                let mut p = vec3::add(
-                    self.origin,
-                    vec3::add(vec3::scale(f.tangent1, u), vec3::scale(f.tangent2, v)),
-                );
+                let (fu, fv) = (i as f64 * s, j as f64 * s);
+                if holes::covered(&disks, fu, fv) {
+                    continue;
+                }
+                let mut p = on_face(offset[0] + fu, offset[1] + fv);
                 if let Some(noise) = &self.noise {
                     for c in &mut p {
                         *c += noise.sample(&mut self.rng);
                     }
                 }
+                if self.depth_noise_per_m > 0.0 {
+                    p = self.along_ray(p, camera_m);
+                }
                 points.push(p.map(|c| c as f32));
             }
         }
         CloudFrame::new(points, now_ns, Pose::default()).map(Some)
+    }
+
+    /// `p` moved along the ray from `camera_m` by the depth noise at its range.
+    fn along_ray(&mut self, p: [f64; 3], camera_m: [f64; 3]) -> [f64; 3] {
+        let ray = vec3::sub(p, camera_m);
+        let range = vec3::norm(ray);
+        if !(range > 0.0) {
+            return p;
+        }
+        let z: f64 = StandardNormal.sample(&mut self.rng);
+        let sigma = holes::depth_sigma_m(self.depth_noise_per_m, range);
+        vec3::add(p, vec3::scale(ray, sigma * z / range))
     }
 }
 

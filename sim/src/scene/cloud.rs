@@ -7,7 +7,11 @@
 //! centre = "tool"              # tool | surface: where the window is centred
 //! spacing_m = 0.0045
 //! noise_m = 0.0005
-//! dropout = 0.0
+//! dropout = 0.0                # random missing points
+//! holes = 0.0                  # fraction of the face in hole patches (dark, shiny parts)
+//! hole_radius_m = 0.015        # their mean radius
+//! depth_noise_per_m = 0.0      # depth noise σ = this × range² along the ray
+//! camera_distance_m = 0.6      # the range: camera above the window's centre
 //! rate_hz = 30.0
 //! moving = true
 //!
@@ -67,8 +71,22 @@ pub struct CloudSource {
     pub spacing_m: f64,
     /// `plane`: Gaussian noise per coordinate [m].
     pub noise_m: f64,
-    /// `plane`: fraction of points dropped per frame.
+    /// `plane`: fraction of points dropped per frame, at random (missing depth pixels).
     pub dropout: f64,
+    /// `plane`: fraction of the face in clustered holes: patches with no depth that stay on the
+    /// object (dark or shiny parts of its surface), of mean radius `hole_radius_m`
+    /// ([`crate::holes`]). Default 0.
+    pub holes: f64,
+    /// `plane`: mean radius of the hole patches [m] (radii uniform in 0.5–1.5 times it).
+    /// Default 0.015: patches 1.5–4.5 cm across.
+    pub hole_radius_m: f64,
+    /// `plane`: depth noise along the camera's ray, `σ = depth_noise_per_m · range²` [1/m]
+    /// (a stereo camera's; a RealSense D435 is about 0.0037: 1.3 mm at 0.6 m, 3 mm at 0.9 m),
+    /// beside `noise_m`. Default 0.
+    pub depth_noise_per_m: f64,
+    /// `plane`: distance of the camera from the face, along the normal above the window's
+    /// centre [m]: the range the depth noise grows with. Default 0.6.
+    pub camera_distance_m: f64,
     /// Frame rate [Hz] (`file`: how often a moving cloud is re-sent).
     pub rate_hz: f64,
     /// The cloud follows the object as it slides (new frames each `1/rate_hz`). A static cloud is
@@ -102,6 +120,10 @@ impl Default for CloudSource {
             spacing_m: 0.0045,
             noise_m: 0.0005,
             dropout: 0.0,
+            holes: 0.0,
+            hole_radius_m: 0.015,
+            depth_noise_per_m: 0.0,
+            camera_distance_m: 0.6,
             rate_hz: 30.0,
             moving: true,
             path: None,
@@ -207,16 +229,29 @@ fn field(
 }
 
 impl CloudSource {
+    /// The simulated camera's largest noise along the normal [m]: the per-coordinate noise and
+    /// the depth noise at the window's farthest corner, added in quadrature.
+    pub fn noise_sigma_m(&self) -> f64 {
+        let half = [0.5 * self.size_m[0], 0.5 * self.size_m[1]];
+        let range = (self.camera_distance_m.powi(2) + half[0].powi(2) + half[1].powi(2)).sqrt();
+        let depth = crate::holes::depth_sigma_m(self.depth_noise_per_m, range);
+        self.noise_m.hypot(depth)
+    }
+
     /// Every number of the section is finite, whichever source reads it: a key the source
     /// ignores is still part of the accepted scene (written back out by `toml`, shown in
     /// reports), and a NaN there used to pass because only the source's own keys were checked.
     pub(super) fn validate_finite(&self) -> Result<(), SceneError> {
         let p = &self.pose;
-        let numbers: [(&'static str, &[f64]); 8] = [
+        let numbers: [(&'static str, &[f64]); 12] = [
             ("cloud.size_m", &self.size_m),
             ("cloud.spacing_m", &[self.spacing_m]),
             ("cloud.noise_m", &[self.noise_m]),
             ("cloud.dropout", &[self.dropout]),
+            ("cloud.holes", &[self.holes]),
+            ("cloud.hole_radius_m", &[self.hole_radius_m]),
+            ("cloud.depth_noise_per_m", &[self.depth_noise_per_m]),
+            ("cloud.camera_distance_m", &[self.camera_distance_m]),
             ("cloud.rate_hz", &[self.rate_hz]),
             ("cloud.stale_ms", &[self.stale_ms]),
             ("cloud.pose.translation_m", &p.translation_m),

@@ -88,9 +88,33 @@ fn errors_name_the_field_the_value_and_the_range() {
         ),
         (
             "spacing_m = 0.0045",
-            "spacing_m = 0.005",
+            "spacing_m = 0.01",
             "cloud.spacing_m",
-            "0.005",
+            "0.01",
+        ),
+        (
+            "dropout = 0.0",
+            "dropout = 0.0\nholes = 0.7",
+            "cloud.holes",
+            "0.7",
+        ),
+        (
+            "dropout = 0.0",
+            "dropout = 0.0\nholes = 0.3\nhole_radius_m = 0.001",
+            "cloud.hole_radius_m",
+            "0.001",
+        ),
+        (
+            "dropout = 0.0",
+            "dropout = 0.0\ndepth_noise_per_m = 0.02",
+            "cloud.depth_noise_per_m",
+            "0.00784",
+        ),
+        (
+            "dropout = 0.0",
+            "dropout = 0.0\ncamera_distance_m = -1.0",
+            "cloud.camera_distance_m",
+            "-1.0",
         ),
         (
             "noise_m = 0.0005",

@@ -344,22 +344,34 @@ impl Scene {
             "≥ 0.1 mm",
         )?;
         non_negative("cloud.noise_m", c.noise_m)?;
+        self.validate_camera_noise()?;
+        let noise = c.noise_sigma_m();
+        let name = if c.depth_noise_per_m > 0.0 {
+            "cloud.noise_m with cloud.depth_noise_per_m (σ at the window's farthest corner)"
+        } else {
+            "cloud.noise_m"
+        };
         field(
-            "cloud.noise_m",
-            c.noise_m,
-            c.noise_m <= (self.proxy.r2_m - self.proxy.r1_m) / 2.0,
-            "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy tolerates without punch-through",
+            name,
+            noise,
+            noise <= (self.proxy.r2_m - self.proxy.r1_m) / 2.0,
+            "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy's band holds (scale the radii \
+             with the noise)",
         )?;
-        // The proxy's sphere of radius (r1+r2)/2 must not fit through the holes of the grid,
-        // and noise widens the holes: a 5 mm grid with 0.5 mm noise let a 4 mm sphere through
-        // in 0.7 % of presses (measured). Keep a 3σ margin.
-        let rest = (self.proxy.r1_m + self.proxy.r2_m) / 2.0;
-        let max_spacing = std::f64::consts::SQRT_2 * (rest - 3.0 * c.noise_m);
+        // The proxy touches the plane fitted over the points within r3 (mmt::contact::bridge):
+        // holes, noise and the gaps of a coarse grid no longer let it through, but the fit needs
+        // points: 32 within r3 of the face after dropout and holes (the fit's effective count is
+        // about a third of its points: mmt::contact::bridge::MIN_POINTS).
+        // (The thesis's proxy needed the spacing below √2·((r1 + r2)/2 − 3σ) instead: a 5 mm
+        // grid with 0.5 mm noise let a 4 mm sphere between the points in 0.7 % of presses.)
+        let kept = (1.0 - c.dropout) * (1.0 - c.holes);
+        let support = std::f64::consts::PI * (self.proxy.r3_m / c.spacing_m).powi(2) * kept;
         field(
             "cloud.spacing_m",
             c.spacing_m,
-            c.spacing_m < max_spacing,
-            "below √2·((proxy.r1_m + proxy.r2_m)/2 − 3·cloud.noise_m), or the proxy slips between noisy points",
+            support >= 32.0,
+            "small enough that the disk of radius proxy.r3_m holds 32 points after \
+             cloud.dropout and cloud.holes (π·(r3/spacing)²·(1 − dropout)·(1 − holes) ≥ 32)",
         )?;
         let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
         field(
@@ -371,8 +383,8 @@ impl Scene {
         field(
             "cloud.dropout",
             c.dropout,
-            (0.0..0.5).contains(&c.dropout),
-            "a fraction in [0, 0.5)",
+            (0.0..=0.6).contains(&c.dropout),
+            "a fraction in [0, 0.6]",
         )?;
         field(
             "cloud.rate_hz",
@@ -381,6 +393,47 @@ impl Scene {
             "in (0, 1000] Hz",
         )?;
         Ok(())
+    }
+
+    /// The simulated camera's clustered holes and depth noise ([`crate::holes`]).
+    fn validate_camera_noise(&self) -> Result<(), SceneError> {
+        let c = &self.cloud;
+        field(
+            "cloud.holes",
+            c.holes,
+            (0.0..=0.6).contains(&c.holes),
+            "a fraction in [0, 0.6] of the face in hole patches",
+        )?;
+        field(
+            "cloud.hole_radius_m",
+            c.hole_radius_m,
+            c.hole_radius_m >= c.spacing_m && c.hole_radius_m <= 0.5,
+            "from cloud.spacing_m to 0.5 m",
+        )?;
+        // The patches are drawn per cell of three radii over the window: a bounded number.
+        let cells = c
+            .size_m
+            .iter()
+            .map(|s| s / (3.0 * c.hole_radius_m) + 3.0)
+            .product::<f64>();
+        field(
+            "cloud.hole_radius_m",
+            c.hole_radius_m,
+            c.holes == 0.0 || cells <= 1e6,
+            "at least 1/3000 of cloud.size_m (a million patch cells per frame)",
+        )?;
+        field(
+            "cloud.depth_noise_per_m",
+            c.depth_noise_per_m,
+            (0.0..=0.1).contains(&c.depth_noise_per_m),
+            "in [0, 0.1] 1/m (σ = this × range²; a RealSense D435 is about 0.0037)",
+        )?;
+        field(
+            "cloud.camera_distance_m",
+            c.camera_distance_m,
+            c.camera_distance_m > 0.0 && c.camera_distance_m <= 10.0,
+            "in (0, 10] m",
+        )
     }
 
     /// `[model]`: structures the object can have, the filter's cut-off and the forgetting.
