@@ -77,7 +77,7 @@ impl Scene {
 
     /// Holds a `plane` cloud to `budget`: grows `cloud.spacing_m` until the worst proxy step and
     /// the frames fit, or refuses the scene when that spacing is at or beyond the largest the
-    /// proxy cannot slip through (the limit `validate` applies).
+    /// plane may have (`max_plane_spacing_m`, the limit `validate` applies).
     pub(super) fn fit_cloud_budget(&mut self, budget: &CloudBudget) -> Result<(), SceneError> {
         if self.cloud.source != CloudKind::Plane {
             return Ok(());
@@ -88,8 +88,7 @@ impl Scene {
         let Err(reason) = budget.check(&proxy, &before) else {
             return Ok(());
         };
-        let rest = proxy.rest_distance_m();
-        let slip_m = std::f64::consts::SQRT_2 * (rest - 3.0 * self.cloud.noise_m);
+        let slip_m = self.max_plane_spacing_m();
         let mut spacing = from * budget.spacing_factor(&proxy, &before);
         for _ in 0..32 {
             let load = plane_load(budget, self, spacing)?;
@@ -105,9 +104,8 @@ impl Scene {
                 detail: format!(
                     "spacing_m = {from} is over the real-time budget at {} Hz: {reason}. Fitting \
                      needs a spacing of {:.2} mm, at or beyond the {:.2} mm the proxy slips \
-                     through \
-                     (√2·((r1+r2)/2 − 3·noise)); make proxy.r3_m or cloud.size_m smaller, \
-                     or cloud.rate_hz lower",
+                     through or its plane lacks points (√2·(r1+r2)/2, and 32 points within \
+                     r3); make proxy.r3_m or cloud.size_m smaller, or cloud.rate_hz lower",
                     proxy.rate_hz,
                     spacing * 1e3,
                     slip_m * 1e3

@@ -432,12 +432,12 @@ fn a_scene_can_raise_the_budget_for_a_faster_robot_pc() {
 
 #[test]
 fn a_plane_that_cannot_fit_without_slipping_is_refused() {
-    // r3 = 0.3 m over a 1 m window: a query ball of 0.46 m holds ~34,000 points even at
-    // 4.5 mm, and no grid the proxy cannot slip through brings it in.
+    // r3 = 0.3 m over a 2 m window: a query ball of 0.61 m holds ~47,000 points even at the
+    // 7.07 mm a 5 mm rest sphere cannot pass, and no grid it cannot slip through brings it in.
     let text = EXP1_TOML
         .replace("r3_m = 0.03 ", "r3_m = 0.3 ")
-        .replace("size_m = [0.25, 0.25]", "size_m = [1.0, 1.0]");
-    assert!(text.contains("r3_m = 0.3 ") && text.contains("size_m = [1.0, 1.0]"));
+        .replace("size_m = [0.25, 0.25]", "size_m = [2.0, 2.0]");
+    assert!(text.contains("r3_m = 0.3 ") && text.contains("size_m = [2.0, 2.0]"));
     let e = Scene::from_toml(&text, "wide.toml").unwrap_err();
     let m = e.to_string();
     for part in [

@@ -358,20 +358,13 @@ impl Scene {
             "≤ (proxy.r2_m − proxy.r1_m)/2, the noise the proxy's band holds (scale the radii \
              with the noise)",
         )?;
-        // The proxy touches the plane fitted over the points within r3 (mmt::contact::bridge):
-        // holes, noise and the gaps of a coarse grid no longer let it through, but the fit needs
-        // points: 32 within r3 of the face after dropout and holes (the fit's effective count is
-        // about a third of its points: mmt::contact::bridge::MIN_POINTS).
-        // (The thesis's proxy needed the spacing below √2·((r1 + r2)/2 − 3σ) instead: a 5 mm
-        // grid with 0.5 mm noise let a 4 mm sphere between the points in 0.7 % of presses.)
-        let kept = (1.0 - c.dropout) * (1.0 - c.holes);
-        let support = std::f64::consts::PI * (self.proxy.r3_m / c.spacing_m).powi(2) * kept;
         field(
             "cloud.spacing_m",
             c.spacing_m,
-            support >= 32.0,
-            "small enough that the disk of radius proxy.r3_m holds 32 points after \
-             cloud.dropout and cloud.holes (π·(r3/spacing)²·(1 − dropout)·(1 − holes) ≥ 32)",
+            c.spacing_m < self.max_plane_spacing_m(),
+            "below √2·(proxy.r1_m + proxy.r2_m)/2 (the gap the proxy's sphere cannot pass), \
+             and small enough that the disk of radius proxy.r3_m holds 32 points after \
+             cloud.dropout and cloud.holes",
         )?;
         let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
         field(
@@ -393,6 +386,22 @@ impl Scene {
             "in (0, 1000] Hz",
         )?;
         Ok(())
+    }
+
+    /// The largest grid spacing of the simulated plane [m]: below `√2·(r1 + r2)/2`, so the
+    /// proxy's sphere cannot pass between the points of a full grid (at the window's edge,
+    /// where no plane bridges them), and with 32 points within `r3` after dropout and holes,
+    /// the support the bridging plane needs (`mmt::contact::bridge`: about a third of them
+    /// count as effective points, its minimum is 12). Noise no longer narrows it: where the
+    /// plane bridges the points, the proxy rests on the fit, not on the noisiest point (the
+    /// thesis's proxy needed `√2·((r1 + r2)/2 − 3σ)`; a 5 mm grid with 0.5 mm noise let a 4 mm
+    /// sphere through in 0.7 % of presses).
+    pub(super) fn max_plane_spacing_m(&self) -> f64 {
+        let c = &self.cloud;
+        let rest = (self.proxy.r1_m + self.proxy.r2_m) / 2.0;
+        let kept = (1.0 - c.dropout) * (1.0 - c.holes);
+        let support = self.proxy.r3_m * (std::f64::consts::PI * kept / 32.0).sqrt();
+        (std::f64::consts::SQRT_2 * rest).min(support)
     }
 
     /// The simulated camera's clustered holes and depth noise ([`crate::holes`]).
