@@ -71,6 +71,37 @@ fn exp3_meets_its_figures() {
     assert!(r.rms_error_pct_remote_contact.unwrap() > 4.0 * after);
 }
 
+/// Issue 14: exp 3 on a depth camera's cloud — 40 % of the points dropped at random, or a
+/// fifth of the face in hole patches 1.5–4.5 cm across — keeps its figures: error after stable ≤ 5 % (the thesis's proxy: 88 %
+/// at 10 % dropout, every contact from 13 s on lost or inverted), contact switched locally
+/// within milliseconds, no switch missed.
+#[test]
+fn exp3_holds_on_camera_clouds_with_dropout_and_hole_patches() {
+    let cameras: [(&str, fn(&mut Scene)); 2] = [
+        ("dropout 0.4", |s| s.cloud.dropout = 0.4),
+        ("holes 0.2", |s| s.cloud.holes = 0.2),
+    ];
+    for (name, camera) in cameras {
+        let mut scene = Scene::exp1();
+        camera(&mut scene);
+        let scene = Scene::from_toml(&toml::to_string(&scene).unwrap(), name).unwrap();
+        for seed in [1, 2] {
+            let (_, r) = run_with(Kind::Exp3, 20.0, |config| {
+                config.scene = scene.clone();
+                config.seed = seed;
+            });
+            let after = r.rms_error_pct_after_stable.unwrap();
+            assert!(after <= 5.0, "{name}, seed {seed}: after stable {after:.2} %");
+            let l = r.contact_switch_latency_ms;
+            assert_eq!((l.switches, l.local_missed), (5, 0), "{name}, seed {seed}");
+            assert!(
+                l.local.unwrap() <= 5.0 && l.local_max.unwrap() <= 10.0,
+                "{name}, seed {seed}: {l:?}"
+            );
+        }
+    }
+}
+
 /// Issue 4: exp 2 — reconstruction error ≤ 2 %, time to stable ≤ 2 s.
 #[test]
 fn exp2_meets_its_figures() {
