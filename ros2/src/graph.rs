@@ -362,6 +362,37 @@ pub fn advertise<M: RosMessage>(
         })
 }
 
+/// Takes the next message waiting on `sub` (an optional topic: `None`, nothing), if any. One
+/// that does not decode is counted in `undecodable`; `any` is set when something (decodable or
+/// not) was waiting, so that an I/O thread drains every subscription until none has anything
+/// (readiness is edge-triggered).
+pub(crate) fn take<M: RosMessage>(
+    sub: Option<&ros2_client::Subscription<M>>,
+    any: &mut bool,
+    undecodable: &mut u64,
+) -> Option<M> {
+    match sub?.take() {
+        Ok(Some((msg, _))) => {
+            *any = true;
+            Some(msg)
+        }
+        Ok(None) => None,
+        Err(_) => {
+            *any = true;
+            *undecodable += 1;
+            None
+        }
+    }
+}
+
+/// The error of creating `what` (a poll, a waker, a thread) on an I/O thread.
+pub(crate) fn io_error(what: &str) -> impl FnOnce(std::io::Error) -> GraphError + '_ {
+    move |e| GraphError::Dds {
+        what: what.to_owned(),
+        reason: e.to_string(),
+    }
+}
+
 /// ROS time now (the system clock), in nanoseconds since the Unix epoch: what ROS 2 nodes stamp
 /// headers with.
 pub fn ros_now_ns() -> i64 {

@@ -134,15 +134,16 @@ struct Recent {
 impl Recent {
     /// Stores a sample; returns the refusal, if any.
     fn push(&mut self, stamp: i64, v: Vec3, counts: &mut StateCounts) -> bool {
-        if let Some((t, _)) = self.latest {
-            if stamp == t {
+        match arrival(self.latest.map(|(t, _)| t), stamp) {
+            Arrival::Duplicate => {
                 counts.duplicates += 1;
                 return false;
             }
-            if stamp < t {
+            Arrival::OutOfOrder => {
                 counts.out_of_order += 1;
                 return false;
             }
+            Arrival::Newer => {}
         }
         self.previous = self.latest;
         self.latest = Some((stamp, v));
@@ -185,6 +186,41 @@ pub struct StateAssembler {
     counts: StateCounts,
 }
 
+/// Where a header stamp falls against the newest stamp of its stream (the robot's state, a
+/// haptic device's pose): only a newer stamp is a new sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Arrival {
+    /// Newer than the newest (or the first).
+    Newer,
+    /// The same stamp again.
+    Duplicate,
+    /// Older than the newest.
+    OutOfOrder,
+}
+
+/// Where `stamp` falls against `newest`.
+pub(crate) fn arrival(newest: Option<i64>, stamp: i64) -> Arrival {
+    match newest {
+        Some(t) if stamp == t => Arrival::Duplicate,
+        Some(t) if stamp < t => Arrival::OutOfOrder,
+        _ => Arrival::Newer,
+    }
+}
+
+/// Whether moving from `last` (stamp \[ns\], position \[m\]) to `position` at `stamp` stays at or
+/// below `max_speed_m_per_s` (always, with no `last`; never, for a non-finite speed).
+pub(crate) fn within_speed(
+    last: Option<(i64, Vec3)>,
+    stamp: i64,
+    position: Vec3,
+    max_speed_m_per_s: f64,
+) -> bool {
+    last.is_none_or(|(t, at)| {
+        let dt = (stamp - t) as f64 * 1e-9;
+        vec3::norm(vec3::sub(position, at)) / dt <= max_speed_m_per_s
+    })
+}
+
 fn stamp_ns(t: Time, counts: &mut StateCounts) -> Option<i64> {
     let ns = t.to_nanos();
     if ns.is_none() {
@@ -219,15 +255,16 @@ impl StateAssembler {
         let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts) else {
             return;
         };
-        if let Some(newest) = self.newest_pose {
-            if stamp == newest {
+        match arrival(self.newest_pose, stamp) {
+            Arrival::Duplicate => {
                 self.counts.duplicates += 1;
                 return;
             }
-            if stamp < newest {
+            Arrival::OutOfOrder => {
                 self.counts.out_of_order += 1;
                 return;
             }
+            Arrival::Newer => {}
         }
         self.newest_pose = Some(stamp);
         if let Some(old) = self.pending.take() {
@@ -320,13 +357,14 @@ impl StateAssembler {
             self.counts.non_finite += 1;
             return;
         }
-        if let Some((t, at)) = self.last {
-            let dt = (p.stamp - t) as f64 * 1e-9;
-            let speed = vec3::norm(vec3::sub(p.position, at)) / dt;
-            if !(speed <= self.config.max_speed_m_per_s) {
-                self.counts.impossible_jumps += 1;
-                return;
-            }
+        if !within_speed(
+            self.last,
+            p.stamp,
+            p.position,
+            self.config.max_speed_m_per_s,
+        ) {
+            self.counts.impossible_jumps += 1;
+            return;
         }
         let force = match self.config.wrench_frame {
             WrenchFrame::Base => force,

@@ -16,7 +16,7 @@
 
 use protocol::telerobot_to_operator::{ModelTerms, ParameterSet, Parameters};
 
-use crate::graph::{GraphError, TopicName};
+use crate::graph::{GraphError, Qos, TopicName};
 use crate::msg::{Float64MultiArray, MultiArrayDimension, MultiArrayLayout};
 
 /// The robot bridge's topics.
@@ -134,6 +134,20 @@ pub fn unknown_key(key: &str, keys: &str) -> GraphError {
     }
 }
 
+/// Applies `--qos KIND=SPEC` rules in order, each over the QoS of its kind among `kinds`
+/// (`("state", &mut state_qos)`, …): the parts a rule leaves out keep that kind's value.
+pub fn apply_qos_rules(rules: &[String], kinds: &mut [(&str, &mut Qos)]) -> Result<(), GraphError> {
+    let names = kinds.iter().map(|(k, _)| *k).collect::<Vec<_>>().join(", ");
+    for rule in rules {
+        let (kind, spec) = split_rule(rule, &names)?;
+        let Some((_, slot)) = kinds.iter_mut().find(|(k, _)| *k == kind) else {
+            return Err(unknown_key(kind, &names));
+        };
+        **slot = Qos::parse(spec, **slot)?;
+    }
+    Ok(())
+}
+
 /// `/mmt/theta`: one labelled dimension (size 1) per parameter, in SI units, labels
 /// `AXES.NAME`: `normal.k` \[N/m\], `normal.b` \[N·s/m\]; `tangential.m` \[kg\], `tangential.k1`
 /// \[N/m\] (when the structure has a ground spring), `tangential.b1`, `tangential.k2`,
@@ -219,6 +233,30 @@ mod tests {
             .remap("target_pose=relative")
             .unwrap_err();
         assert!(e.to_string().contains("target_pose"), "{e}");
+    }
+
+    #[test]
+    fn qos_rules_change_their_kind_only_and_name_bad_kinds() {
+        let (mut state, mut command) = (Qos::STREAM, Qos::STREAM);
+        let rules = [
+            "command=reliable".to_owned(),
+            "state=keep-last-5".to_owned(),
+        ];
+        apply_qos_rules(
+            &rules,
+            &mut [("state", &mut state), ("command", &mut command)],
+        )
+        .unwrap();
+        assert_eq!(state.to_string(), "best-effort,volatile,keep-last-5");
+        assert_eq!(command.to_string(), "reliable,volatile,keep-last-1");
+        let e = apply_qos_rules(&["model=reliable".to_owned()], &mut [("state", &mut state)])
+            .unwrap_err();
+        assert!(e.to_string().contains("expected one of state"), "{e}");
+        let e = apply_qos_rules(&["state".to_owned()], &mut [("state", &mut state)]).unwrap_err();
+        assert!(e.to_string().contains("KEY=/topic/name"), "{e}");
+        let e =
+            apply_qos_rules(&["state=fast".to_owned()], &mut [("state", &mut state)]).unwrap_err();
+        assert!(e.to_string().contains("\"fast\""), "{e}");
     }
 
     #[test]

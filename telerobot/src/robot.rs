@@ -180,18 +180,14 @@ impl RobotArgs {
         for rule in &self.topics {
             bridge.topics.remap(rule)?;
         }
-        for rule in &self.qos {
-            let (kind, spec) = ros2::topics::split_rule(rule, "state, command, settings")?;
-            let slot = match kind {
-                "state" => &mut bridge.state_qos,
-                "command" => &mut bridge.command_qos,
-                "settings" => &mut bridge.settings_qos,
-                other => {
-                    return Err(ros2::topics::unknown_key(other, "state, command, settings").into());
-                }
-            };
-            *slot = ros2::Qos::parse(spec, *slot)?;
-        }
+        ros2::topics::apply_qos_rules(
+            &self.qos,
+            &mut [
+                ("state", &mut bridge.state_qos),
+                ("command", &mut bridge.command_qos),
+                ("settings", &mut bridge.settings_qos),
+            ],
+        )?;
         bridge.state.twist = bridge.topics.robot_twist.is_some();
         bridge.state.wrench_frame = match self.wrench_frame.as_str() {
             "tool" => ros2::state::WrenchFrame::Tool,

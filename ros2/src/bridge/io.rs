@@ -10,7 +10,7 @@ use ros2_client::{Node, Publisher, Subscription};
 use transport::Mailbox;
 
 use super::{BridgeConfig, IoReport, STATE_QUEUE, Shared, Timed};
-use crate::graph::{self, Graph, GraphError, ros_now_ns};
+use crate::graph::{self, Graph, GraphError, io_error, ros_now_ns};
 use crate::msg::{
     Bool, Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion, Time, Twist,
     TwistStamped, Vector3, WrenchStamped,
@@ -48,13 +48,6 @@ struct Io {
     wall_offset_ns: i64,
 }
 
-fn dds(what: &str) -> impl FnOnce(std::io::Error) -> GraphError + '_ {
-    move |e| GraphError::Dds {
-        what: what.to_owned(),
-        reason: e.to_string(),
-    }
-}
-
 /// Creates the endpoints and starts the thread.
 pub(super) fn spawn(
     graph: &Graph,
@@ -84,20 +77,20 @@ pub(super) fn spawn(
     };
     let theta = graph::advertise::<Float64MultiArray>(&mut node, &t.theta, config.settings_qos)?;
     let contact = graph::advertise::<Bool>(&mut node, &t.in_contact, config.settings_qos)?;
-    let poll = Poll::new().map_err(dds("poll"))?;
+    let poll = Poll::new().map_err(io_error("poll"))?;
     let registry = poll.registry();
     registry
         .register(&mut pose, POSE, Interest::READABLE)
-        .map_err(dds("pose subscription"))?;
+        .map_err(io_error("pose subscription"))?;
     if let Some(s) = twist.as_mut() {
         registry
             .register(s, TWIST, Interest::READABLE)
-            .map_err(dds("twist subscription"))?;
+            .map_err(io_error("twist subscription"))?;
     }
     registry
         .register(&mut wrench, WRENCH, Interest::READABLE)
-        .map_err(dds("wrench subscription"))?;
-    let waker = Waker::new(registry, WAKE).map_err(dds("waker"))?;
+        .map_err(io_error("wrench subscription"))?;
+    let waker = Waker::new(registry, WAKE).map_err(io_error("waker"))?;
     let shared = Arc::new(Shared {
         states: Mailbox::new(STATE_QUEUE),
         targets: Mailbox::latest(),
@@ -132,7 +125,7 @@ pub(super) fn spawn(
     let handle = std::thread::Builder::new()
         .name("ros2-io".to_owned())
         .spawn(move || io.run())
-        .map_err(dds("the ros2-io thread"))?;
+        .map_err(io_error("the ros2-io thread"))?;
     Ok((shared, handle))
 }
 
@@ -158,43 +151,20 @@ impl Io {
     fn drain(&mut self) {
         loop {
             let mut any = false;
-            match self.pose.take() {
-                Ok(Some((msg, _))) => {
-                    any = true;
-                    if self.frame_id.is_empty() {
-                        self.frame_id.clone_from(&msg.header.frame_id);
-                    }
-                    self.assembler.on_pose(&msg, rt::monotonic_ns());
+            let undecodable = &mut self.report.undecodable;
+            if let Some(msg) = graph::take(Some(&self.pose), &mut any, undecodable) {
+                if self.frame_id.is_empty() {
+                    self.frame_id.clone_from(&msg.header.frame_id);
                 }
-                Ok(None) => {}
-                Err(_) => {
-                    any = true;
-                    self.report.undecodable += 1;
-                }
+                self.assembler.on_pose(&msg, rt::monotonic_ns());
             }
-            if let Some(sub) = &self.twist {
-                match sub.take() {
-                    Ok(Some((msg, _))) => {
-                        any = true;
-                        self.assembler.on_twist(&msg);
-                    }
-                    Ok(None) => {}
-                    Err(_) => {
-                        any = true;
-                        self.report.undecodable += 1;
-                    }
-                }
+            let undecodable = &mut self.report.undecodable;
+            if let Some(msg) = graph::take(self.twist.as_ref(), &mut any, undecodable) {
+                self.assembler.on_twist(&msg);
             }
-            match self.wrench.take() {
-                Ok(Some((msg, _))) => {
-                    any = true;
-                    self.assembler.on_wrench(&msg);
-                }
-                Ok(None) => {}
-                Err(_) => {
-                    any = true;
-                    self.report.undecodable += 1;
-                }
+            let undecodable = &mut self.report.undecodable;
+            if let Some(msg) = graph::take(Some(&self.wrench), &mut any, undecodable) {
+                self.assembler.on_wrench(&msg);
             }
             self.forward_states();
             if !any {
