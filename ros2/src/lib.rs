@@ -15,6 +15,9 @@
 //!   DDS I/O on a thread of its own;
 //! - [`camera`]: a camera's PointCloud2 topic → the contact detector's cloud frames;
 //! - [`arm`]: the test arm, a simulated robot on the graph (tests, figures, `mmt-test-arm`);
+//! - [`haptic`]: the operator's haptic device on the graph (`operator run --device ros2`,
+//!   forcedimension_ros2's topics by default), with its DDS I/O on a thread of its own;
+//! - [`fd_double`]: a stand-in for forcedimension_ros2 on the graph (tests);
 //!
 //! What it is not: no estimation, contact or wire protocol of its own (`mmt`, `node`,
 //! `protocol`, none of which depends on this crate or on DDS).
@@ -22,7 +25,9 @@
 pub mod arm;
 pub mod bridge;
 pub mod camera;
+pub mod fd_double;
 pub mod graph;
+pub mod haptic;
 pub mod msg;
 pub mod pointcloud2;
 pub mod state;
