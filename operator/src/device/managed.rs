@@ -165,13 +165,18 @@ impl<B: Backend> ManagedDevice<B> {
         self.state = State::Faulted(Fault { at: now, cause });
     }
 
-    /// Runs a backend operation; an error faults the device and is returned.
+    /// Runs a backend operation; an error faults the device and is returned. (Once faulted,
+    /// a failing backend's message is not formatted again: no allocation per tick.)
     fn guarded<T>(
         &mut self,
         now: Duration,
         op: impl FnOnce(&mut Self) -> Result<T, DeviceError>,
     ) -> Result<T, DeviceError> {
-        op(self).inspect_err(|e| self.enter_fault(now, FaultCause::Device(e.to_string())))
+        op(self).inspect_err(|e| {
+            if !matches!(self.state, State::Faulted(_)) {
+                self.enter_fault(now, FaultCause::Device(e.to_string()));
+            }
+        })
     }
 }
 
