@@ -157,8 +157,11 @@ pub fn run(config: RunConfig, shutdown: Shutdown) -> Result<Outcome, RunError> {
     let mut device = open_device(&config.device, &config.open)?;
     let spec = device.spec().clone();
     let mut safety = SafetyLayer::new(&spec, &config.safety)?;
-    if !spec.outputs_force {
-        tracing::warn!(device = %config.device, "{}", crate::cli::no_force_warning(&config.device));
+    let forces = crate::cli::force_line(&config.device, &spec);
+    if spec.outputs_force {
+        tracing::info!(device = %config.device, name = %spec.name, "{forces}");
+    } else {
+        tracing::warn!(device = %config.device, name = %spec.name, "{forces}");
     }
     let (link, mut network) = Network::start(&config.net)?;
 

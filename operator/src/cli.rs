@@ -21,6 +21,7 @@ use clap::{Args, Parser, Subcommand};
 use rt::Shutdown;
 
 pub use net::{GenCertArgs, NetArgs, NetArgsError, gen_cert};
+pub use ros::{RosArgs, RosArgsError};
 pub use run::{LoopArgs, PriorArgs, RtArgs, emit};
 
 use crate::device::omega::{self, OmegaConfig, SdkProbe, sdk};
@@ -97,8 +98,9 @@ pub struct DevicesArgs {
 #[derive(Clone, Debug, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct RunArgs {
-    /// The device: scripted:NAME, replay:FILE.csv, replay:FILE.mcap (a recording), spacemouse
-    /// or omega.
+    /// The device: scripted:NAME, replay:FILE.csv, replay:FILE.mcap (a recording), spacemouse,
+    /// omega (Force Dimension SDK) or ros2 (a driver on a ROS 2 graph: forcedimension_ros2's
+    /// topics by default).
     #[arg(long, value_name = "SPEC")]
     pub device: DeviceSpec,
     /// Time over which force ramps in after enabling [ms].
@@ -119,6 +121,9 @@ pub struct RunArgs {
     /// SDK options.
     #[command(flatten)]
     pub sdk: SdkArgs,
+    /// ROS 2 device options.
+    #[command(flatten)]
+    pub ros: RosArgs,
     /// Network options.
     #[command(flatten)]
     pub net: NetArgs,
@@ -315,6 +320,13 @@ fn render_backends(s: &mut String) -> std::fmt::Result {
             omega.workspace,
             "needs the Force Dimension SDK (libdhd.so) and a connected omega.x",
         ),
+        (
+            "ros2",
+            "yes",
+            Some(&omega),
+            omega.workspace,
+            "a driver on a ROS 2 graph (forcedimension_ros2's topics by default; no ROS install here)",
+        ),
     ];
     for (name, force, caps, ws, note) in rows {
         let (f, k, b) = caps.map_or(("-".into(), "-".into(), "-".into()), |c| {
@@ -361,6 +373,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             ..SpaceMouseConfig::default()
         },
         omega: args.sdk.config()?,
+        ros: args.ros.options(&args.device)?,
     };
     let Some(net) = net else {
         let device = open_device(&args.device, &options)?;
@@ -373,9 +386,7 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
             spec.max_force_n,
             spec.workspace.describe()
         )?;
-        if !spec.outputs_force {
-            writeln!(out, "WARNING: {}", no_force_warning(&args.device))?;
-        }
+        writeln!(out, "{}", force_line(&args.device, spec))?;
         writeln!(
             out,
             "operator run: no telerobot given (--connect, --identity, --trust); device opened and closed again."
@@ -409,11 +420,26 @@ pub fn run(args: &RunArgs, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
 pub fn no_force_warning(spec: &DeviceSpec) -> String {
     match spec {
         DeviceSpec::SpaceMouse => "the SpaceMouse has NO force output: you will feel nothing. It only moves the tool (velocity input integrated to a position).".into(),
+        DeviceSpec::Ros2 => "ros2 with --topic command=none: NO force is written; the device is position input only.".into(),
         other => format!("{other} is simulated: forces are recorded but felt by no one."),
     }
 }
 
+/// The start message's word on forces: plainly whether a run writes them to this device.
+#[must_use]
+pub fn force_line(spec: &DeviceSpec, caps: &DeviceCapabilities) -> String {
+    match spec {
+        _ if !caps.outputs_force => format!("WARNING: {}", no_force_warning(spec)),
+        DeviceSpec::Ros2 => "forces: WRITTEN in a run — published on the command topic above \
+            while the device's poses are fresh (zero otherwise, and nothing before the first \
+            pose), ramped in, through the safety layer"
+            .into(),
+        _ => "forces: WRITTEN to the device in a run, ramped in, through the safety layer".into(),
+    }
+}
+
 mod net;
+mod ros;
 mod run;
 #[cfg(test)]
 mod tests;

@@ -3,7 +3,8 @@
 //! only) counts the allocations and frees made on the threads named `haptic-loop` and
 //! `telerobot-loop`. After a warm-up that covers the first contact, the first model and the
 //! first clouds, the counts must not move — also while both sides record and serve the live
-//! view (issue 15: the recording is written off the loops).
+//! view (issue 15: the recording is written off the loops). The ROS 2 haptic device's loop side
+//! (`--device ros2`) is checked the same way on a loop of its own.
 #![allow(unsafe_code)] // the GlobalAlloc impl; see the SAFETY comments
 #![allow(clippy::unwrap_used)]
 
@@ -140,4 +141,86 @@ fn neither_loop_allocates_or_frees_while_both_sides_record() {
         "allocations or frees on the loop threads while recording"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The ROS 2 device (`--device ros2`) against the forcedimension_ros2 double: reading the pose
+/// and handing over the force, once a tick, allocate and free nothing on the loop's thread
+/// (the DDS work, serialisation included, is on the device's I/O thread).
+#[test]
+fn the_ros2_devices_loop_side_neither_allocates_nor_frees() {
+    use operator::device::ros::RosOptions;
+    use operator::device::{DeviceSpec, ManagedConfig, OpenOptions, open_device};
+    use ros2::fd_double::{FdDouble, Step, fd_pose};
+    use ros2::haptic::{HapticConfig, HapticTopics};
+    use std::time::Instant;
+
+    let _serial = serial();
+    let pid = std::process::id();
+    let mut topics = HapticTopics::default();
+    for (key, name) in [("pose", "ee_pose"), ("command", "fd_controller/commands")] {
+        topics
+            .remap(&format!("{key}=/no_alloc_{pid}/fd/{name}"))
+            .unwrap();
+    }
+    let graph = ros2::GraphConfig {
+        domain_id: 90 + (pid % 10) as u16,
+        localhost_only: true,
+    };
+    let double = FdDouble::start(
+        &ros2::Graph::join(&graph).unwrap(),
+        &topics,
+        1000.0,
+        Box::new(|k, now| Step {
+            pose: Some(fd_pose(now, [0.01 + 1e-6 * (k % 1000) as f64, 0.0, 0.0])),
+            button: None,
+        }),
+    )
+    .unwrap();
+    let options = OpenOptions {
+        managed: ManagedConfig {
+            enable_ramp: Duration::ZERO,
+            servo_watchdog: Duration::from_secs(10),
+        },
+        ros: RosOptions {
+            graph: Some(graph),
+            device: HapticConfig {
+                topics,
+                stale_after: Duration::from_secs(10),
+                ..HapticConfig::default()
+            },
+            first_pose_timeout: Duration::from_secs(30),
+        },
+        ..OpenOptions::default()
+    };
+    let mut device = open_device(&DeviceSpec::Ros2, &options).unwrap();
+    let loop_thread = std::thread::Builder::new()
+        .name("haptic-loop".into())
+        .spawn(move || {
+            let start = Instant::now();
+            device.enable(start.elapsed()).unwrap();
+            let mut tick = |seconds: u64| {
+                while start.elapsed() < Duration::from_secs(seconds) {
+                    let now = start.elapsed();
+                    device.update(now).unwrap();
+                    device.servo_cf(now, [0.5, 0.0, 0.0]).unwrap();
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            };
+            tick(1);
+            let warm = ON_LOOPS.load(Relaxed);
+            tick(3);
+            (ON_LOOPS.load(Relaxed) - warm, device)
+        })
+        .unwrap();
+    let (running, device) = loop_thread.join().unwrap();
+    let received = double.stop();
+    assert!(
+        received.iter().any(|c| c.message.data == [0.5, 0.0, 0.0]),
+        "the forces reached the double"
+    );
+    drop(device);
+    assert_eq!(
+        running, 0,
+        "allocations or frees on the device's loop thread"
+    );
 }

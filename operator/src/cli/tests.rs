@@ -112,7 +112,9 @@ fn bad_device_values_fail_at_parse_time_with_the_allowed_forms() {
     let msg = e.to_string();
     assert!(
         msg.contains("'phantom'")
-            && msg.contains("scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"),
+            && msg.contains(
+                "scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega, ros2"
+            ),
         "{msg}"
     );
 }
@@ -318,4 +320,122 @@ fn a_bad_prior_is_refused_before_anything_is_printed() {
     }
     let args = run_args(&["--prior", "none"]);
     assert_eq!(args.run.prior.node_config().unwrap().prior, None);
+}
+
+fn ros_run_args(extra: &[&str]) -> RunArgs {
+    let mut argv = vec!["operator", "run", "--device", "ros2"];
+    argv.extend_from_slice(extra);
+    let Command::Run(args) = Cli::try_parse_from(argv).unwrap().command else {
+        panic!("not run")
+    };
+    *args
+}
+
+#[test]
+fn ros2_device_flags_make_the_device_config() {
+    let args = ros_run_args(&[
+        "--ros-domain",
+        "7",
+        "--topic",
+        "pose=/left/fd/ee_pose",
+        "--topic",
+        "button=none",
+        "--topic",
+        "twist=/left/fd/ee_twist",
+        "--qos",
+        "state=reliable,keep-last-5",
+        "--qos",
+        "command=keep-last-2",
+        "--ros-command-len",
+        "7",
+    ]);
+    let o = args.ros.options(&args.device).unwrap();
+    assert_eq!(o.graph.unwrap().domain_id, 7);
+    let d = o.device;
+    assert_eq!(d.topics.pose.as_str(), "/left/fd/ee_pose");
+    assert_eq!(d.topics.twist.unwrap().as_str(), "/left/fd/ee_twist");
+    assert!(d.topics.button.is_none());
+    assert_eq!(
+        d.topics.command.unwrap().as_str(),
+        "/fd/fd_controller/commands"
+    );
+    assert_eq!(d.state_qos.to_string(), "reliable,volatile,keep-last-5");
+    assert_eq!(d.command_qos.to_string(), "reliable,volatile,keep-last-2");
+    assert_eq!(d.command_len.get(), 7);
+    // No flags: forcedimension_ros2's defaults.
+    let args = ros_run_args(&[]);
+    let d = args.ros.options(&args.device).unwrap().device;
+    assert_eq!(d, ros2::haptic::HapticConfig::default());
+}
+
+#[test]
+fn bad_ros2_device_flags_are_refused_with_one_clear_message() {
+    for (extra, says) in [
+        (
+            &["--topic", "wrench=/x"][..],
+            "unknown key; expected one of pose, twist, button, command",
+        ),
+        (
+            &["--topic", "pose=fd/ee_pose"],
+            "topic pose = \"fd/ee_pose\" is not a valid ROS 2 name (not absolute",
+        ),
+        (
+            &["--qos", "settings=reliable"],
+            "unknown key; expected one of state, command",
+        ),
+        (
+            &["--qos", "state=fast"],
+            "QoS \"fast\": unknown or out-of-range part",
+        ),
+        (
+            &["--ros-command-len", "8"],
+            "--ros-command-len 8: expected 3 to 7",
+        ),
+        (
+            &["--ros-domain", "233"],
+            "--ros-domain = \"233\": expected a ROS domain id, 0 to 232",
+        ),
+    ] {
+        let args = ros_run_args(extra);
+        let e = run(&args, Shutdown::new(), &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(says), "{extra:?}: {e}");
+    }
+    // The ROS 2 flags with another device.
+    for (extra, flag) in [
+        (&["--topic", "pose=/x"][..], "--topic"),
+        (&["--ros-domain", "3"], "--ros-domain"),
+        (&["--qos", "state=reliable"], "--qos"),
+        (&["--ros-command-len", "3"], "--ros-command-len"),
+    ] {
+        let e = run(&run_args(extra), Shutdown::new(), &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, format!("{flag} applies to --device ros2 only"));
+    }
+}
+
+#[test]
+fn the_start_message_says_plainly_whether_forces_are_written() {
+    let caps = DeviceCapabilities::omega7("ROS 2 device");
+    let line = force_line(&DeviceSpec::Ros2, &caps);
+    assert!(line.starts_with("forces: WRITTEN"), "{line}");
+    assert!(line.contains("nothing before the first pose"), "{line}");
+    let input_only = DeviceCapabilities {
+        outputs_force: false,
+        ..caps.clone()
+    };
+    let line = force_line(&DeviceSpec::Ros2, &input_only);
+    assert!(
+        line.starts_with("WARNING:") && line.contains("NO force is written"),
+        "{line}"
+    );
+    let line = force_line(&DeviceSpec::Omega, &caps);
+    assert!(line.starts_with("forces: WRITTEN to the device"), "{line}");
+    let scripted = DeviceSpec::Scripted {
+        name: "hold".into(),
+    };
+    let line = force_line(&scripted, &input_only);
+    assert!(line.contains("felt by no one"), "{line}");
 }

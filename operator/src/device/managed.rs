@@ -309,6 +309,10 @@ impl<B: Backend> HapticDevice for ManagedDevice<B> {
     fn fault_count(&self) -> u64 {
         self.faults
     }
+
+    fn backend_report(&self) -> Option<super::BackendReport> {
+        self.backend.report()
+    }
 }
 
 #[cfg(test)]

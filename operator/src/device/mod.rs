@@ -12,7 +12,7 @@
 //!   ramp**, so every backend behaves the same way.
 //! - Backends: [`scripted`] (a [`sim::trajectory::Trajectory`], the simulated twin),
 //!   [`replay`] (a recorded CSV or MCAP), [`spacemouse`] (HID, input only), [`omega`] (Force Dimension SDK
-//!   loaded at run time).
+//!   loaded at run time), [`ros`] (a device on a ROS 2 graph: forcedimension_ros2 by default).
 //! - [`DeviceSpec`] / [`open_device`] — the `--device` value, parsed and opened.
 //!
 //! What it is not: no force shaping beyond the enable ramp and a last non-finite guard. Saturation,
@@ -25,6 +25,7 @@
 pub mod managed;
 pub mod omega;
 pub mod replay;
+pub mod ros;
 pub mod scripted;
 pub mod select;
 pub mod spacemouse;
@@ -244,6 +245,10 @@ pub trait HapticDevice: Send {
     fn force_record(&self) -> &ForceRecord;
     /// Times the device entered [`OperatingState::Faulted`] (for reports).
     fn fault_count(&self) -> u64;
+    /// The backend's own counters (for reports; may lock, not for the loop).
+    fn backend_report(&self) -> Option<BackendReport> {
+        None
+    }
 }
 
 /// The driver interface a backend implements. Keep it small: the state machine, the ramp and the
@@ -257,6 +262,19 @@ pub trait Backend: Send {
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError>;
     /// Switches the device's force output on or off.
     fn set_force_enabled(&mut self, on: bool) -> Result<(), DeviceError>;
+    /// The backend's own counters, if it keeps any (for reports; not for the loop: it may
+    /// lock).
+    fn report(&self) -> Option<BackendReport> {
+        None
+    }
+}
+
+/// A backend's own counters in the run report.
+#[derive(Clone, Debug, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackendReport {
+    /// The ROS 2 device: what arrived, what was refused, what was published.
+    Ros2(Box<ros2::haptic::HapticReport>),
 }
 
 /// Errors of the device layer. Each says what failed, with the value and what was expected.
@@ -264,7 +282,7 @@ pub trait Backend: Send {
 pub enum DeviceError {
     /// A `--device` value that is not one of the allowed forms.
     #[error(
-        "invalid device '{value}': {reason}; allowed forms: scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"
+        "invalid device '{value}': {reason}; allowed forms: scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega, ros2"
     )]
     InvalidSpec {
         /// The value given.
@@ -329,6 +347,22 @@ pub enum DeviceError {
     ForcesOff {
         /// Why, as the device reported it.
         cause: String,
+    },
+    /// The ROS 2 device could not start (the graph, a topic, no pose).
+    #[error(transparent)]
+    Ros2(#[from] ros2::haptic::HapticError),
+    /// The ROS 2 device's pose stopped: no new valid pose for longer than the limit.
+    #[error(
+        "no valid pose on {topic} for {age:?} (limit {limit:?}): forces off; the driver stopped \
+         publishing, or refused poses (the report's ros2 device counts say which)"
+    )]
+    StalePose {
+        /// The pose topic.
+        topic: std::sync::Arc<str>,
+        /// Time since the last new valid pose (by the loop's clock).
+        age: Duration,
+        /// The limit.
+        limit: Duration,
     },
     /// The device is faulted; [`HapticDevice::reset`] it first.
     #[error("device is faulted ({cause}); reset it before enabling")]

@@ -8,6 +8,7 @@ use sim::trajectory::{NAMES, Trajectory, by_name};
 
 use super::omega::{OmegaBackend, OmegaConfig};
 use super::replay::ReplayTrajectory;
+use super::ros::{RosBackend, RosOptions};
 use super::scripted::ScriptedBackend;
 use super::spacemouse::{SpaceMouseBackend, SpaceMouseConfig};
 use super::{DeviceError, HapticDevice, ManagedConfig, ManagedDevice};
@@ -30,6 +31,8 @@ pub enum DeviceSpec {
     SpaceMouse,
     /// `omega` — a Force Dimension device through its SDK.
     Omega,
+    /// `ros2` — a device on a ROS 2 graph (forcedimension_ros2's topics by default).
+    Ros2,
 }
 
 impl FromStr for DeviceSpec {
@@ -53,13 +56,14 @@ impl FromStr for DeviceSpec {
             Some(("replay", file)) => Ok(Self::Replay {
                 path: PathBuf::from(file),
             }),
-            Some((kind @ ("spacemouse" | "omega"), _)) => {
+            Some((kind @ ("spacemouse" | "omega" | "ros2"), _)) => {
                 Err(invalid(&format!("{kind} takes no argument")))
             }
             Some((kind, _)) => Err(invalid(&format!("unknown device kind '{kind}'"))),
             None => match value {
                 "spacemouse" => Ok(Self::SpaceMouse),
                 "omega" => Ok(Self::Omega),
+                "ros2" => Ok(Self::Ros2),
                 "scripted" | "replay" => {
                     Err(invalid(&format!("{value} needs an argument ({value}:…)")))
                 }
@@ -76,6 +80,7 @@ impl std::fmt::Display for DeviceSpec {
             Self::Replay { path } => write!(f, "replay:{}", path.display()),
             Self::SpaceMouse => f.write_str("spacemouse"),
             Self::Omega => f.write_str("omega"),
+            Self::Ros2 => f.write_str("ros2"),
         }
     }
 }
@@ -92,6 +97,8 @@ pub struct OpenOptions {
     pub spacemouse: SpaceMouseConfig,
     /// Force Dimension settings.
     pub omega: OmegaConfig,
+    /// ROS 2 device settings.
+    pub ros: RosOptions,
 }
 
 /// Opens the device a spec names and wraps it in the state machine (Disabled).
@@ -117,6 +124,10 @@ pub fn open_device(
         )?),
         DeviceSpec::Omega => Box::new(ManagedDevice::new(
             OmegaBackend::open(&options.omega)?,
+            options.managed,
+        )?),
+        DeviceSpec::Ros2 => Box::new(ManagedDevice::new(
+            RosBackend::open(&options.ros)?,
             options.managed,
         )?),
     })
@@ -162,6 +173,7 @@ mod tests {
             DeviceSpec::SpaceMouse
         );
         assert_eq!("omega".parse::<DeviceSpec>().unwrap(), DeviceSpec::Omega);
+        assert_eq!("ros2".parse::<DeviceSpec>().unwrap(), DeviceSpec::Ros2);
         // A Windows-style path keeps its colon.
         assert_eq!(
             "replay:C:/x.csv".parse::<DeviceSpec>().unwrap(),
@@ -180,12 +192,15 @@ mod tests {
             "scripted:",
             "replay:",
             "omega:2",
+            "ros2:/fd",
             "falcon:x",
         ] {
             let msg = bad.parse::<DeviceSpec>().unwrap_err().to_string();
             assert!(msg.contains(&format!("'{bad}'")), "{msg}");
             assert!(
-                msg.contains("scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega"),
+                msg.contains(
+                    "scripted:NAME, replay:FILE.csv, replay:FILE.mcap, spacemouse, omega, ros2"
+                ),
                 "{msg}"
             );
         }
@@ -193,7 +208,13 @@ mod tests {
 
     #[test]
     fn display_round_trips() {
-        for s in ["scripted:hold", "replay:a.csv", "spacemouse", "omega"] {
+        for s in [
+            "scripted:hold",
+            "replay:a.csv",
+            "spacemouse",
+            "omega",
+            "ros2",
+        ] {
             assert_eq!(s.parse::<DeviceSpec>().unwrap().to_string(), s);
         }
     }

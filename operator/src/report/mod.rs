@@ -16,7 +16,7 @@ use serde::Serialize;
 use sim::scene::Scene;
 use transport::{LinkReport, Outages};
 
-use crate::device::{ForceRecord, OperatingState};
+use crate::device::{BackendReport, ForceRecord, OperatingState};
 use crate::haptic::LoopEnd;
 use crate::helper::Recording;
 use crate::safety::SafetyStats;
@@ -78,6 +78,9 @@ pub struct NetworkedReport {
     pub device_faults: u64,
     /// The fault the device ended in, if any: its cause and when.
     pub device_fault: Option<String>,
+    /// The device backend's own counters (the ROS 2 device's: poses refused, commands
+    /// published and zeroed), if it keeps any.
+    pub device_backend: Option<BackendReport>,
     /// Wall-clock length of the haptic loop \[s\].
     pub wall_seconds: f64,
     /// The directions the series' forces are plotted along (`mmt plot` reads them).
@@ -219,6 +222,7 @@ pub fn build(facts: &RunFacts, rec: &Recording, end: &LoopEnd) -> (Series, Netwo
             .device
             .fault()
             .map(|f| format!("{} (at {:.3} s)", f.cause, f.at.as_secs_f64())),
+        device_backend: end.device.backend_report(),
         wall_seconds: facts.wall_seconds,
         series_axes: SeriesAxes {
             tangent: series.axis,

@@ -9,6 +9,7 @@ use rt::{Summary, TimingReport};
 use transport::LinkReport;
 
 use super::{NetworkedReport, PeerFigures};
+use crate::device::BackendReport;
 
 /// The stdout table: `mmt experiment`'s, then the networked figures (with `peer`'s rows where a
 /// run has them).
@@ -50,6 +51,9 @@ fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> st
         rows.row("netem release lateness p50 / p99 / max", us(l));
     }
     safety_rows(&mut rows, r);
+    if let Some(BackendReport::Ros2(d)) = &r.device_backend {
+        ros2_device_rows(&mut rows, d);
+    }
     writeln!(out, "network")?;
     for (name, value) in rows.0 {
         writeln!(out, "{name:<46} {value:>14}")?;
@@ -274,6 +278,62 @@ fn safety_rows(rows: &mut Rows, r: &NetworkedReport) {
             p.dissipated_j * 1e3,
             p.controlling.ticks,
             p.capped.ticks
+        ),
+    );
+}
+
+/// The ROS 2 device: the poses it took and refused, the commands it published and zeroed.
+fn ros2_device_rows(rows: &mut Rows, d: &ros2::haptic::HapticReport) {
+    let g = &d.io.gate;
+    let c = &d.io.commands;
+    rows.row(
+        "ros2 device: poses received / accepted",
+        format!("{} / {}", g.poses, g.accepted),
+    );
+    rows.row(
+        "  effective rate, longest stamp gap",
+        format!(
+            "{:.1} Hz, {:.1} ms",
+            d.effective_rate_hz, d.io.longest_stamp_gap_ms
+        ),
+    );
+    rows.row("  stamp → receipt p50 / p99 / max", us(&d.latency));
+    rows.row("  velocity from", d.velocity_from.to_owned());
+    rows.row(
+        "  refused: out of order / duplicate / malformed",
+        format!(
+            "{} / {} / {}",
+            g.out_of_order, g.duplicates, g.malformed_stamps
+        ),
+    );
+    rows.row(
+        "  refused: non-finite / out of range / jump",
+        format!(
+            "{} / {} / {}",
+            g.non_finite, g.out_of_range, g.impossible_jumps
+        ),
+    );
+    rows.row(
+        "  undecodable messages, twists refused",
+        format!("{}, {}", d.io.undecodable, g.twists_refused),
+    );
+    if !d.writes_force {
+        rows.row("  commands", "none: forces NOT written".to_owned());
+        return;
+    }
+    rows.row(
+        "  commands published (zero) / errors",
+        format!("{} ({}) / {}", c.published, c.zero, c.publish_errors),
+    );
+    rows.row(
+        "  dropped before a pose / non-finite",
+        format!("{} / {}", c.before_pose, c.non_finite),
+    );
+    rows.row(
+        "  zeroed: stale pose (episodes) / watchdog",
+        format!(
+            "{} ({}) / {}",
+            c.stale_zeroed, c.stale_episodes, c.watchdog_zeroed
         ),
     );
 }

@@ -1,5 +1,5 @@
 use super::*;
-use crate::device::{DeviceSpec, OpenOptions, open_device};
+use crate::device::{BackendReport, DeviceSpec, OpenOptions, open_device};
 use crate::haptic::LoopEnd;
 
 fn facts() -> RunFacts {
@@ -205,4 +205,84 @@ fn an_outage_across_a_reconnect_is_counted_and_its_windows_marked() {
         value(&t, "outages (no measurement ≥ 100 ms), all sessions"),
         "1 · longest 5501 ms · total 5501 ms"
     );
+}
+
+/// Every refusal of the ROS 2 device is in the table, not in the JSON only.
+#[test]
+fn the_table_shows_the_ros2_devices_refusals_and_commands() {
+    use ros2::haptic::{CommandCounts, GateCounts, HapticReport, IoReport};
+    let mut r = report(SafetyStats::default(), Vec::new());
+    assert!(!table(&r, &PeerFigures::default()).contains("ros2 device"));
+    let device = HapticReport {
+        domain_id: 7,
+        topics: "pose = /fd/ee_pose".into(),
+        velocity_from: "the pose, differentiated over 10 ms",
+        writes_force: true,
+        effective_rate_hz: 999.5,
+        latency: rt::Summary::default(),
+        samples_not_taken: 0,
+        io: IoReport {
+            gate: GateCounts {
+                poses: 100,
+                accepted: 88,
+                out_of_order: 1,
+                duplicates: 2,
+                malformed_stamps: 3,
+                non_finite: 4,
+                out_of_range: 5,
+                impossible_jumps: 6,
+                twists_refused: 7,
+                ..GateCounts::default()
+            },
+            undecodable: 8,
+            commands: CommandCounts {
+                published: 90,
+                zero: 40,
+                before_pose: 9,
+                stale_zeroed: 10,
+                stale_episodes: 1,
+                watchdog_zeroed: 2,
+                non_finite: 3,
+                publish_errors: 4,
+            },
+            ..IoReport::default()
+        },
+    };
+    r.device_backend = Some(BackendReport::Ros2(Box::new(device.clone())));
+    let t = table(&r, &PeerFigures::default());
+    assert_eq!(
+        value(&t, "ros2 device: poses received / accepted"),
+        "100 / 88"
+    );
+    assert_eq!(
+        value(&t, "  refused: out of order / duplicate / malformed"),
+        "1 / 2 / 3"
+    );
+    assert_eq!(
+        value(&t, "  refused: non-finite / out of range / jump"),
+        "4 / 5 / 6"
+    );
+    assert_eq!(value(&t, "  undecodable messages, twists refused"), "8, 7");
+    assert_eq!(
+        value(&t, "  commands published (zero) / errors"),
+        "90 (40) / 4"
+    );
+    assert_eq!(value(&t, "  dropped before a pose / non-finite"), "9 / 3");
+    assert_eq!(
+        value(&t, "  zeroed: stale pose (episodes) / watchdog"),
+        "10 (1) / 2"
+    );
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(
+        json["device_backend"]["ros2"]["gate"]["impossible_jumps"],
+        6
+    );
+    assert_eq!(json["device_backend"]["ros2"]["commands"]["before_pose"], 9);
+    // Input only: said so, no command rows.
+    r.device_backend = Some(BackendReport::Ros2(Box::new(HapticReport {
+        writes_force: false,
+        ..device
+    })));
+    let t = table(&r, &PeerFigures::default());
+    assert_eq!(value(&t, "  commands"), "none: forces NOT written");
 }
