@@ -26,8 +26,8 @@ use super::NormalEstimator;
 /// Where the plane fit bridges the cloud ([`ProxyConfig::bridge_holes`], the default), the
 /// proxy rests `(r1 + r2)/2` from the fitted plane: the spacing and the noise then matter only
 /// through the fit (`r2 − r1` must still hold the noise: it bounds the fit's residual), and
-/// holes up to about `0.85 r3` in radius are bridged. The rules above still hold where the
-/// points are not a plane (edges, corners, curved surfaces).
+/// round holes up to about `1.9 r3` in radius are bridged. The rules above still hold where
+/// the points are not a plane within the band (edges, corners, what stands out of a surface).
 ///
 /// The defaults suit a depth camera at about 1 mm spacing with noise (standard deviation) up to
 /// 0.5 mm — `r2 − r1` spans four standard deviations — and stay safe (no punch-through) up to
@@ -55,9 +55,9 @@ pub struct ProxyConfig {
     pub normal_estimator: NormalEstimator,
     /// Where the points around the proxy are a plane that surrounds it, touch the fitted plane
     /// instead of the points ([`super::bridge`]): holes and noise in a camera's cloud then do
-    /// not let the proxy through or make contact flicker. Needs the plane-fit estimator.
-    /// Default `true`; `false` is the thesis's proxy, points only (appendix C), kept as the
-    /// baseline the figures are measured against.
+    /// not let the proxy through or make contact flicker. Acts with the plane-fit estimator
+    /// only ([`ProxyConfig::bridges`]). Default `true`; `false` is the thesis's proxy, points
+    /// only (appendix C), kept as the baseline the figures are measured against.
     #[serde(default = "bridge_by_default")]
     pub bridge_holes: bool,
 }
@@ -155,6 +155,12 @@ impl ProxyConfig {
     /// straight out, `ceil((r2 − r1)/(ζ r1))` (the "sticking" the operator feels).
     pub fn sticking_steps(&self) -> u32 {
         ((self.r2_m - self.r1_m) / (self.zeta * self.r1_m)).ceil() as u32
+    }
+
+    /// Whether the proxy bridges holes with the fitted plane: [`ProxyConfig::bridge_holes`]
+    /// with the plane-fit estimator (eq. 14 alone fits no plane to bridge with).
+    pub fn bridges(&self) -> bool {
+        self.bridge_holes && self.normal_estimator == NormalEstimator::WeightedPlaneFit
     }
 
     /// Largest grid spacing [m] the proxy cannot slip through: a square grid's widest gap has

@@ -58,6 +58,7 @@
 //! of the last step, the step starts from that step's final query and surface instead of
 //! repeating them: a sliding or free proxy costs one radius query per step, a resting one none.
 
+use super::bridge;
 use super::distance::{clearing_distance, first_touch};
 use super::neighbours::{Neighbour, Neighbours};
 use super::surface::{LocalSurface, SurfaceFrame, local_surface};
@@ -81,9 +82,10 @@ const SWEEP_SEGMENT_OF_R3: f64 = 1.0;
 /// the queries per step (two sweeps: the velocity step and the free step).
 const MAX_SWEEP_SEGMENTS: usize = 4;
 
-/// Where the points within `r3` do not bridge, the plane is fitted again over this many `r3`
-/// ([`super::bridge`]): holes up to about `0.85 · 2 r3` in radius (5 cm at the exp-1 radii)
-/// are bridged from anywhere over them.
+/// Where the points within `r3` lack points around the proxy, the plane is fitted again over
+/// this many `r3` ([`super::bridge`]): by the gap rule, round holes up to about `1.9 r3` in
+/// radius are then bridged from anywhere over them (58 mm at the exp-1 radii; a 9 cm hole is
+/// tested), where `r3` alone bridges up to about `0.95 r3`.
 const WIDE_OF_R3: f64 = 2.0;
 
 /// A query asks for this fraction of `r3` beyond the ball it needs, so that the next ticks,
@@ -101,6 +103,8 @@ pub struct Proxy {
     normal_speed: f64,
     /// `n̂_{k−1}`: the normal that governed the last step.
     last_normal: Option<Vec3>,
+    /// Whether the proxy was touching the surface at the end of the last step.
+    touching: bool,
     scratch: Scratch,
 }
 
@@ -114,6 +118,7 @@ impl Proxy {
             position: [0.0; 3],
             normal_speed: 0.0,
             last_normal: None,
+            touching: false,
             scratch: Scratch::default(),
         };
         proxy.reset(initial_hip)?;
@@ -128,6 +133,7 @@ impl Proxy {
         self.position = hip;
         self.normal_speed = 0.0;
         self.last_normal = None;
+        self.touching = false;
         Ok(())
     }
 
@@ -174,6 +180,7 @@ impl Proxy {
 
         // 2. Eq. 14–15 and the state at the proxy.
         let here = self.scratch.surface_at(cloud, self.position, &c, false);
+        let here = keep_side(here, self.last_normal, self.touching);
         let step_state = classify(&here, &c);
         let normal = match step_state {
             ContactState::Free => here.normal,
@@ -193,8 +200,10 @@ impl Proxy {
             (ContactState::Entrenched, None) => [0.0; 3],
             (ContactState::Contact, n) => {
                 let slide = contact_step(u, n, &c);
-                match (n, here.plane_distance) {
-                    (Some(n), Some(height)) => vec3::add(slide, settle(u, n, height, &c)),
+                match (n, here.plane) {
+                    (Some(n), Some(plane)) => {
+                        vec3::add(slide, plane.settle(u, n, c.rest_distance_m()))
+                    }
                     _ => slide,
                 }
             }
@@ -211,10 +220,13 @@ impl Proxy {
 
         // 4. Thesis D.3: what the surface looks like where the proxy now is.
         let there = self.scratch.surface_at(cloud, self.position, &c, true);
+        let there = keep_side(there, normal, step_state.is_touching());
+        let state = classify(&there, &c);
+        self.touching = state.is_touching();
         let frame = there.normal.and_then(SurfaceFrame::from_normal);
         let normal = frame.map(|f| f.normal);
         ContactOutput {
-            state: classify(&there, &c),
+            state,
             step_state,
             proxy_m: self.position,
             normal,
@@ -228,35 +240,28 @@ impl Proxy {
     }
 
     /// Eq. 16–17: toward the HIP until `(r1+r2)/2` from the first point in the way — or, where
-    /// the fitted plane bridges the points around the proxy (`here`), from that plane.
+    /// the fitted plane bridges the points around the proxy (`here`), from that plane and from
+    /// the points standing out of it.
     ///
-    /// Near points (any within `r3`), one tick moves at most `r3 − (r1+r2)/2`: every point the
-    /// moving sphere can meet is then among those `here` was computed from, so a bridging plane
-    /// holds along the whole move and a hole cannot be crossed within one step (`r3 − 5 mm` per
-    /// millisecond at the exp-1 radii: 25 m/s, beyond any hand).
+    /// Bridging, one tick moves at most the plane's support (`r3` or `2 r3`) less `(r1+r2)/2`:
+    /// every point the moving sphere can meet is then among those `here` was computed from, so
+    /// the plane and its obstacles hold along the whole move and a hole cannot be crossed within
+    /// one step (25 or 55 mm per millisecond at the exp-1 radii: faster than any hand).
     fn free_step<N: Neighbours>(&mut self, cloud: &N, u: Vec3, here: &LocalSurface) -> Vec3 {
         let len = vec3::norm(u);
         if len <= 0.0 {
             return [0.0; 3];
         }
         let dir = vec3::scale(u, 1.0 / len);
-        let c = self.config;
-        let near = here.count > 0;
-        let reach = if near {
-            len.min((here.support_m - c.rest_distance_m()).max(0.0))
-        } else {
-            len
-        };
-        let d = match (here.plane_distance, here.normal) {
-            (Some(height), Some(n)) if near => {
-                let approach = -vec3::dot(n, dir);
-                if approach > 0.0 {
-                    reach.min(((height - c.rest_distance_m()) / approach).max(0.0))
-                } else {
-                    reach
-                }
+        let rest = self.config.rest_distance_m();
+        let d = match (here.plane, here.normal) {
+            (Some(plane), Some(n)) => {
+                let reach = len.min((here.support_m - rest).max(0.0));
+                let from = self.position;
+                let points = self.scratch.buf.iter().map(|nb| vec3::sub(nb.point, from));
+                plane.free_reach(n, dir, reach, rest, points)
             }
-            _ => self.sweep(cloud, dir, reach),
+            _ => self.sweep(cloud, dir, len),
         };
         if d >= len {
             // Unobstructed: land exactly on the HIP (no rounding of dir·len).
@@ -312,11 +317,14 @@ impl Proxy {
     }
 
     /// Eq. 18–19: out along `n` until every point within `r1` is `(r1+r2)/2` away — or, where
-    /// the fitted plane bridges the points (`here`), until that plane is.
+    /// the fitted plane bridges the points (`here`), until that plane and the points standing
+    /// out of it within `r1` are.
     fn entrenched_step(&self, n: Vec3, here: &LocalSurface) -> Vec3 {
         let c = &self.config;
-        if let Some(height) = here.plane_distance {
-            return vec3::scale(n, (c.rest_distance_m() - height).max(0.0));
+        if let Some(plane) = here.plane {
+            let from = self.position;
+            let points = self.scratch.buf.iter().map(|nb| vec3::sub(nb.point, from));
+            return vec3::scale(n, plane.clearance(n, c.rest_distance_m(), c.r1_m, points));
         }
         let (a, r1_sq) = (c.rest_distance_m(), c.r1_m * c.r1_m);
         let d = self
@@ -357,25 +365,12 @@ fn contact_step(u: Vec3, normal: Option<Vec3>, c: &ProxyConfig) -> Vec3 {
     }
 }
 
-/// On a bridging plane ([`super::bridge`]), pushing in (`n̂ᵀu < 0`) also settles the proxy onto
-/// the plane, down to `(r1 + r2)/2` from it: where eq. 22 alone leaves it wherever it first came
-/// within `r2`, the plane's wobble from frame to frame (noise, holes) would take it beyond `r2`
-/// now and then, and contact would flicker. Never toward the plane otherwise, never past
-/// `(r1 + r2)/2`.
-fn settle(u: Vec3, n: Vec3, height: f64, c: &ProxyConfig) -> Vec3 {
-    if vec3::dot(n, u) < 0.0 && height > c.rest_distance_m() {
-        vec3::scale(n, c.rest_distance_m() - height)
-    } else {
-        [0.0; 3]
-    }
-}
-
 /// The largest ball the proxy queries [m]: a sweep segment's (`seg/2 + r3`), the surface's
 /// (`r3`) or, bridging holes, the wide plane's (`2 r3`), plus the reuse margin.
 pub(super) fn max_query_radius_m(c: &ProxyConfig) -> f64 {
     let seg = SWEEP_SEGMENT_OF_R3 * c.r3_m;
     let sweep = 0.5 * seg + c.r3_m.max(c.rest_distance_m());
-    let wide = if c.bridge_holes {
+    let wide = if c.bridges() {
         WIDE_OF_R3 * c.r3_m
     } else {
         0.0
@@ -383,11 +378,11 @@ pub(super) fn max_query_radius_m(c: &ProxyConfig) -> f64 {
     sweep.max(wide) + QUERY_MARGIN_OF_R3 * c.r3_m
 }
 
-/// Eq. 15's states from the distance to the surface: the bridging plane's where there is one
-/// ([`super::bridge`]), else the nearest point's.
+/// Eq. 15's states from the distance to the surface: the bridging plane's (or a point standing
+/// out of it) where there is one ([`super::bridge`]), else the nearest point's.
 fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {
-    let d2 = match s.plane_distance {
-        Some(height) => height * height.abs(),
+    let d2 = match s.plane {
+        Some(plane) => plane.distance2(),
         None => s.nearest_d2,
     };
     if d2 < c.r1_m * c.r1_m {
@@ -397,6 +392,22 @@ fn classify(s: &LocalSurface, c: &ProxyConfig) -> ContactState {
     } else {
         ContactState::Free
     }
+}
+
+/// A bridging plane has no side of its own: its normal is oriented toward wherever the proxy
+/// is. A proxy touching it from one side that finds the fitted normal turned against the last
+/// one (`last`) has been carried past the plane — a frame that jumped toward it, a step it could
+/// not see — and keeps its side: the normal turned back, the height negative, so that it reads
+/// as entrenched and is pushed out to the side it came from instead of reading the surface
+/// inverted.
+fn keep_side(mut s: LocalSurface, last: Option<Vec3>, touching: bool) -> LocalSurface {
+    if let (true, Some(last), Some(n), Some(plane)) = (touching, last, s.normal, s.plane.as_mut())
+        && vec3::dot(n, last) < 0.0
+    {
+        s.normal = Some(vec3::scale(n, -1.0));
+        plane.height_m = -plane.height_m;
+    }
+    s
 }
 
 /// The reused neighbour buffer and what it holds: every point within `radius` of `centre` of
@@ -468,11 +479,16 @@ impl Scratch {
             return surface;
         }
         let mut surface = self.surface_over(at, c, c.r3_m, with_point);
-        if c.bridge_holes && surface.plane_distance.is_none() {
+        // Wider only where r3 lacked points around the proxy, not where its points are not a
+        // plane (something on the surface, which a wider fit would only dilute).
+        let planar = surface
+            .residual_m
+            .is_none_or(|r| r <= bridge::MAX_RESIDUAL_OF_BAND * (c.r2_m - c.r1_m));
+        if c.bridges() && surface.plane.is_none() && planar {
             let wide = WIDE_OF_R3 * c.r3_m;
             self.ensure(cloud, at, wide, QUERY_MARGIN_OF_R3 * c.r3_m);
             let bridged = self.surface_over(at, c, wide, with_point);
-            if bridged.plane_distance.is_some() {
+            if bridged.plane.is_some() {
                 surface = bridged;
             }
         }
@@ -488,12 +504,7 @@ impl Scratch {
         support_m: f64,
         with_point: bool,
     ) -> LocalSurface {
-        // A band of −1 bridges nothing (no residual is below it).
-        let band = if c.bridge_holes {
-            c.r2_m - c.r1_m
-        } else {
-            -1.0
-        };
+        let band = c.bridges().then_some(c.r2_m - c.r1_m);
         local_surface(
             at,
             &self.buf,

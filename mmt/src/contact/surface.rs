@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::bridge;
+use super::bridge::{self, BridgePlane};
 use super::neighbours::Neighbour;
 use crate::vec3::{self, Vec3};
 
@@ -89,16 +89,19 @@ pub enum NormalEstimator {
 pub(crate) struct LocalSurface {
     /// Unit normal toward `centre`'s side; `None` without points or when eq. 14 cancels.
     pub normal: Option<Vec3>,
-    /// Wendland-weighted centroid of the points; `None` when every weight is 0.
+    /// A point on the fitted surface next to `centre` (see [`local_surface`]); `None` when every
+    /// weight is 0.
     pub centroid: Option<Vec3>,
     /// Squared distance to the nearest point [m²] (∞ without points).
     pub nearest_d2: f64,
     /// Points within `r3`.
     pub count: usize,
-    /// Distance [m] from `centre` to the fitted plane along `normal`, where that plane bridges
-    /// the points (planar within the noise band and surrounding the foot of `centre`; see
-    /// [`super::bridge`]); `None` elsewhere, where the points themselves are the surface.
-    pub plane_distance: Option<f64>,
+    /// The weighted RMS distance of the points to the fitted plane [m]; `None` without a plane
+    /// fit (eq. 14, or points that span no plane).
+    pub residual_m: Option<f64>,
+    /// The fitted plane where it bridges the points (see [`super::bridge`]); `None` elsewhere,
+    /// where the points themselves are the surface.
+    pub plane: Option<BridgePlane>,
     /// Radius of the ball the surface was computed over [m] (`r3`, or wider where only a wider
     /// plane bridges the points).
     pub support_m: f64,
@@ -113,90 +116,33 @@ const PLANARITY: f64 = 2.0;
 
 /// Eq. 14–15 at `centre` over the neighbours within `r3` (others in the slice are ignored),
 /// and whether the fitted plane bridges them there (points within `band_m` of it; `r2 − r1`
-/// for the proxy, [`super::bridge`]). The slice is summed in its order: the same slice gives the
-/// same bits; another backend's order agrees to rounding.
+/// for the proxy, [`super::bridge`]; `None`: never). The slice is summed in its order: the same
+/// slice gives the same bits; another backend's order agrees to rounding.
 pub(crate) fn local_surface(
     centre: Vec3,
     neighbours: &[Neighbour],
-    (r1, r3, band_m): (f64, f64, f64),
+    (r1, r3, band_m): (f64, f64, Option<f64>),
     estimator: NormalEstimator,
     with_point: bool,
 ) -> LocalSurface {
     let psi = Wendland::new(r1, r3);
-    let normal;
-    let sums;
-    let mut fit = None;
-    match estimator {
-        NormalEstimator::WeightedDirections => {
-            sums = Sums::gather::<true>(centre, neighbours, &psi);
-            normal = sums.eq14();
-        }
-        NormalEstimator::WeightedPlaneFit => {
-            sums = Sums::gather::<false>(centre, neighbours, &psi);
-            // Orient toward the proxy: the proxy sits on the free side of the weighted
-            // centroid. Where that is ambiguous, or the points span no plane, eq. 14 decides.
-            let away = vec3::scale(sums.m1, -1.0);
-            let plane = plane_normal(&sums);
-            fit = plane.map(|(_, residual)| residual);
-            normal = match plane.map(|(n, _)| n) {
-                Some(n) if vec3::dot(n, away).abs() > 1e-6 * vec3::norm(away) => {
-                    Some(if vec3::dot(n, away) < 0.0 {
-                        vec3::scale(n, -1.0)
-                    } else {
-                        n
-                    })
-                }
-                Some(n) => Sums::gather::<true>(centre, neighbours, &psi)
-                    .eq14()
-                    .map(|side| {
-                        if vec3::dot(n, side) < 0.0 {
-                            vec3::scale(n, -1.0)
-                        } else {
-                            n
-                        }
-                    }),
-                None if sums.count > 0 => Sums::gather::<true>(centre, neighbours, &psi).eq14(),
-                None => None,
-            };
-        }
-    }
-    // The surface point: weighted by the distance *along the surface* once the normal is known.
-    // Weights by the 3-D distance favour the points noise moved toward the proxy, which puts the
-    // surface too close to it by a fraction of the noise (a −5 % stiffness bias on a 2000 N/m
-    // wall at 0.5 mm noise, measured); in-plane distances do not depend on that noise.
-    //
-    // It is then slid along the fitted plane to the foot of `centre`: the same plane, the same
-    // height along this normal, but a point next to the tool. A caller that measures the height
-    // along another normal (the tracker's, frozen at the onset) is then off by the angle between
-    // the two times the tool's distance from the point — millimetres from the foot, where the
-    // centroid is up to r3 away over a hole (measured: 1–2° of onset tilt on a noisy cloud with
-    // holes put the centroid's height 0.5–1 mm off, 10–35 % of the force).
-    let centroid = if !with_point {
-        None
+    let (sums, normal, residual_m) = oriented_normal(centre, neighbours, &psi, estimator);
+    let centroid = if with_point {
+        surface_point(centre, neighbours, &psi, &sums, normal)
     } else {
-        match normal {
-            Some(n) => in_plane_centroid(centre, neighbours, &psi, n)
-                .map(|c| vec3::sub(centre, vec3::scale(n, vec3::dot(n, vec3::sub(centre, c))))),
-            None => None,
-        }
-        .or_else(|| {
-            (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
-        })
+        None
     };
-    let plane_distance = match (normal, fit) {
-        (Some(n), Some(residual))
-            if bridge::bridges(
-                centre,
-                neighbours,
-                r3,
-                n,
-                residual,
-                band_m,
-                sums.effective(),
-            ) =>
-        {
+    let plane = match (normal, residual_m, band_m) {
+        (Some(n), Some(residual), Some(band)) => {
             // The plane passes through the weighted mean, `centre + m1/Σψ`.
-            Some(-vec3::dot(n, sums.m1) / sums.weight)
+            let height = -vec3::dot(n, sums.m1) / sums.weight;
+            let fit = bridge::Fit {
+                normal: n,
+                height_m: height,
+                residual_m: residual,
+                effective_points: sums.effective(),
+            };
+            bridge::bridge(centre, neighbours, r3, &fit, band)
         }
         _ => None,
     };
@@ -205,9 +151,73 @@ pub(crate) fn local_surface(
         centroid,
         nearest_d2: sums.nearest_d2,
         count: sums.count,
-        plane_distance,
+        residual_m,
+        plane,
         support_m: r3,
     }
+}
+
+/// The weighted sums, the unit normal toward `centre` (eq. 14, or the plane fit oriented toward
+/// the proxy's side) and, for a plane fit, the points' RMS distance to the plane.
+fn oriented_normal(
+    centre: Vec3,
+    neighbours: &[Neighbour],
+    psi: &Wendland,
+    estimator: NormalEstimator,
+) -> (Sums, Option<Vec3>, Option<f64>) {
+    if estimator == NormalEstimator::WeightedDirections {
+        let sums = Sums::gather::<true>(centre, neighbours, psi);
+        let normal = sums.eq14();
+        return (sums, normal, None);
+    }
+    let sums = Sums::gather::<false>(centre, neighbours, psi);
+    // Orient toward the proxy: the proxy sits on the free side of the weighted centroid. Where
+    // that is ambiguous, or the points span no plane, eq. 14 decides.
+    let away = vec3::scale(sums.m1, -1.0);
+    let plane = plane_normal(&sums);
+    let toward = |n: Vec3, side: Vec3| {
+        if vec3::dot(n, side) < 0.0 {
+            vec3::scale(n, -1.0)
+        } else {
+            n
+        }
+    };
+    let normal = match plane.map(|(n, _)| n) {
+        Some(n) if vec3::dot(n, away).abs() > 1e-6 * vec3::norm(away) => Some(toward(n, away)),
+        Some(n) => Sums::gather::<true>(centre, neighbours, psi)
+            .eq14()
+            .map(|side| toward(n, side)),
+        None if sums.count > 0 => Sums::gather::<true>(centre, neighbours, psi).eq14(),
+        None => None,
+    };
+    (sums, normal, plane.map(|(_, residual)| residual))
+}
+
+/// The surface point: weighted by the distance *along the surface* once the normal is known.
+/// Weights by the 3-D distance favour the points noise moved toward the proxy, which puts the
+/// surface too close to it by a fraction of the noise (a −5 % stiffness bias on a 2000 N/m wall
+/// at 0.5 mm noise, measured); in-plane distances do not depend on that noise.
+///
+/// It is then slid along the fitted plane to the foot of `centre`: the same plane, the same
+/// height along this normal, but a point next to the tool. A caller that measures the height
+/// along another normal (the tracker's, frozen at the onset) is then off by the angle between
+/// the two times the tool's distance from the point — millimetres from the foot, where the
+/// centroid is up to r3 away over a hole.
+fn surface_point(
+    centre: Vec3,
+    neighbours: &[Neighbour],
+    psi: &Wendland,
+    sums: &Sums,
+    normal: Option<Vec3>,
+) -> Option<Vec3> {
+    normal
+        .and_then(|n| {
+            in_plane_centroid(centre, neighbours, psi, n)
+                .map(|c| vec3::sub(centre, vec3::scale(n, vec3::dot(n, vec3::sub(centre, c)))))
+        })
+        .or_else(|| {
+            (sums.weight > 0.0).then(|| vec3::add(centre, vec3::scale(sums.m1, 1.0 / sums.weight)))
+        })
 }
 
 /// `Σψ(|y − (y·n) n|) x / Σψ`: the centroid weighted by in-plane distance.
@@ -512,7 +522,13 @@ mod tests {
             })
             .collect();
         let at = |centre: Vec3, estimator| {
-            local_surface(centre, &points, (0.001, 0.006, 0.002), estimator, true)
+            local_surface(
+                centre,
+                &points,
+                (0.001, 0.006, Some(0.002)),
+                estimator,
+                true,
+            )
         };
         for estimator in [
             NormalEstimator::WeightedDirections,
