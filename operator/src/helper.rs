@@ -653,9 +653,9 @@ mod tests {
 
     #[test]
     fn a_session_first_frame_is_held_as_static_and_the_next_at_the_cloud_rate() {
-        // 0.25 m at 0.8 mm (98,000 points, under the step limit): indexed once it fits, at
-        // 30 Hz it does not.
-        let frame = grid(313, 0.0008);
+        // 0.25 m at 1 mm (63,000 points, under the step limit of the wide plane's 61 mm query
+        // ball): indexed once it fits, at 30 Hz it does not.
+        let frame = grid(251, 0.001);
         let mut guard = CloudGuard::default();
         let mut first = frame.clone();
         assert!(guard.hold(&mut first, Some(&exp1()), 3));
