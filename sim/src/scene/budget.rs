@@ -104,7 +104,7 @@ impl Scene {
                 detail: format!(
                     "spacing_m = {from} is over the real-time budget at {} Hz: {reason}. Fitting \
                      needs a spacing of {:.2} mm, at or beyond the {:.2} mm the proxy slips \
-                     through or its plane lacks points (√2·(r1+r2)/2, and 32 points within \
+                     through or its plane lacks points (√2·(r1+r2)/2, and 48 points within \
                      r3); make proxy.r3_m or cloud.size_m smaller, or cloud.rate_hz lower",
                     proxy.rate_hz,
                     spacing * 1e3,

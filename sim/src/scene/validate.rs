@@ -363,7 +363,7 @@ impl Scene {
             c.spacing_m,
             c.spacing_m < self.max_plane_spacing_m(),
             "below √2·(proxy.r1_m + proxy.r2_m)/2 (the gap the proxy's sphere cannot pass), \
-             and small enough that the disk of radius proxy.r3_m holds 32 points after \
+             and small enough that the disk of radius proxy.r3_m holds 48 points after \
              cloud.dropout and cloud.holes",
         )?;
         let points = (c.size_m[0] / c.spacing_m) * (c.size_m[1] / c.spacing_m);
@@ -390,18 +390,19 @@ impl Scene {
 
     /// The largest grid spacing of the simulated plane [m]: below `√2·(r1 + r2)/2`, so the
     /// proxy's sphere cannot pass between the points of a full grid (at the window's edge,
-    /// where no plane bridges them), and with 32 points within `r3` after dropout and holes,
-    /// the support the bridging plane needs (`mmt::contact::bridge`: about a third of them
-    /// count as effective points, its minimum is 12). Noise no longer narrows it: where the
+    /// where no plane bridges them: `ProxyConfig::max_point_spacing_m`), and with 48 points
+    /// within `r3` after dropout and holes, the support the bridging plane needs
+    /// (`mmt::contact::bridge`: about a quarter of the points in `r3` count as effective points,
+    /// 35–40 of ~140 on the exp-1 plane, and it needs 12). Noise no longer narrows it: where the
     /// plane bridges the points, the proxy rests on the fit, not on the noisiest point (the
     /// thesis's proxy needed `√2·((r1 + r2)/2 − 3σ)`; a 5 mm grid with 0.5 mm noise let a 4 mm
     /// sphere through in 0.7 % of presses).
     pub(super) fn max_plane_spacing_m(&self) -> f64 {
         let c = &self.cloud;
-        let rest = (self.proxy.r1_m + self.proxy.r2_m) / 2.0;
+        let proxy = self.proxy.config(self.rates.control_hz);
         let kept = (1.0 - c.dropout) * (1.0 - c.holes);
-        let support = self.proxy.r3_m * (std::f64::consts::PI * kept / 32.0).sqrt();
-        (std::f64::consts::SQRT_2 * rest).min(support)
+        let support = self.proxy.r3_m * (std::f64::consts::PI * kept / 48.0).sqrt();
+        proxy.max_point_spacing_m().min(support)
     }
 
     /// The simulated camera's clustered holes and depth noise ([`crate::holes`]).
