@@ -42,6 +42,10 @@ pub struct ExperimentArgs {
     /// Disable state sync.
     #[arg(long)]
     no_sync: bool,
+    /// Detect contact with the thesis's proxy (points only) on both nodes, without the plane
+    /// that bridges holes in the cloud: the baseline of the camera figures.
+    #[arg(long)]
+    thesis_proxy: bool,
     /// What the operator renders before the first model: generic (the default: the centre of
     /// the soft-object class), none (free space), truth (the scene's true object: the floor a
     /// perfect prior sets), or K,B (the normal's stiffness and damping in N/m and N·s/m; the
@@ -228,6 +232,7 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     }
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
+    config.thesis_proxy = args.thesis_proxy;
     config.operator.prior = prior(&args.prior, &config.scene)?;
     config.jitter_ms = args.jitter_ms;
     link_faults(&mut config, args)?;

@@ -105,6 +105,10 @@ pub struct ExperimentConfig {
     pub trajectory: String,
     /// The operator node's settings.
     pub operator: OperatorConfig,
+    /// Both nodes detect contact with the thesis's proxy, points only, without the plane that
+    /// bridges a camera's holes (`mmt::contact::bridge`): the baseline of issue 14's figures.
+    #[serde(default)]
+    pub thesis_proxy: bool,
 }
 
 impl ExperimentConfig {
@@ -122,6 +126,7 @@ impl ExperimentConfig {
             seed: 1,
             trajectory: kind.default_trajectory().to_string(),
             operator: OperatorConfig::default(),
+            thesis_proxy: false,
         }
     }
 

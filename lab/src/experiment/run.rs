@@ -156,9 +156,13 @@ struct Harness {
 impl Harness {
     fn new(config: &ExperimentConfig) -> Result<Harness, ExperimentError> {
         let scene = &config.scene;
-        let settings = scene.telerobot_settings();
-        let operator_settings = OperatorSettings::from_welcome(&scene.summary())
+        let mut settings = scene.telerobot_settings();
+        let mut operator_settings = OperatorSettings::from_welcome(&scene.summary())
             .map_err(|e| ExperimentError::Settings(e.to_string()))?;
+        if config.thesis_proxy {
+            settings.proxy.bridge_holes = false;
+            operator_settings.proxy.bridge_holes = false;
+        }
         let trajectory = by_name_seeded(
             &config.trajectory,
             config.seconds,

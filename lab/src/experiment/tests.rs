@@ -77,7 +77,8 @@ fn exp3_meets_its_figures() {
 /// within milliseconds, no switch missed.
 #[test]
 fn exp3_holds_on_camera_clouds_with_dropout_and_hole_patches() {
-    let cameras: [(&str, fn(&mut Scene)); 2] = [
+    type Camera = fn(&mut Scene);
+    let cameras: [(&str, Camera); 2] = [
         ("dropout 0.4", |s| s.cloud.dropout = 0.4),
         ("holes 0.2", |s| s.cloud.holes = 0.2),
     ];
@@ -91,7 +92,10 @@ fn exp3_holds_on_camera_clouds_with_dropout_and_hole_patches() {
                 config.seed = seed;
             });
             let after = r.rms_error_pct_after_stable.unwrap();
-            assert!(after <= 5.0, "{name}, seed {seed}: after stable {after:.2} %");
+            assert!(
+                after <= 5.0,
+                "{name}, seed {seed}: after stable {after:.2} %"
+            );
             let l = r.contact_switch_latency_ms;
             assert_eq!((l.switches, l.local_missed), (5, 0), "{name}, seed {seed}");
             assert!(
