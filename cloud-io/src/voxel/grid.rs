@@ -1,0 +1,510 @@
+//! [`VoxelGrid`]: the voxel grid of a camera stream, without hashing and without a comparison
+//! sort.
+//!
+//! One read of the points gives their bounding box and from it each axis's range of voxel
+//! indices (`⌊c / s⌋` is non-decreasing in `c`, so the box's corners hold the least and the
+//! greatest index). Then one of two ways, both giving [`super::voxel_downsample`]'s result bit
+//! for bit (each voxel's points summed in `f64` from 0 in input order, voxels in index order):
+//! - **dense**, when the box holds at most `2·n + 65,536` voxels (a camera's surface: a
+//!   0.6 × 0.5 m table at 3 mm is 207 × 157 × 2): a slot per voxel of the box, an entry per
+//!   occupied voxel, made at its first point, to which each point is added in input order; then
+//!   the slots in index order;
+//! - **sorted**, otherwise: each point's voxel index relative to the box's lowest, packed into
+//!   as few bits as the ranges need (`i` above `j` above `k`: the packed order is the
+//!   lexicographic one) above the point's index; a least-significant-digit radix sort of those
+//!   words (at most 12 bits a pass; stable, so a voxel's points stay in input order); one run
+//!   over the sorted words sums each voxel.
+//!
+//! A cloud neither way takes (a non-finite coordinate; a voxel index beyond ±2^51; key and
+//! point-index bits beyond 64, e.g. 300,000 points over 2^45 voxels) goes to
+//! [`super::voxel_downsample`] itself, which also names the point of any error.
+
+use super::{VoxelError, initial_voxel, voxel_downsample};
+
+/// [`voxel_downsample`] with buffers kept between calls, for a camera stream. The output is the
+/// same, bit for bit: centroids summed in `f64` in input order, ordered by voxel index. Allocates
+/// only while its buffers grow to the largest frame seen.
+#[derive(Debug, Default)]
+pub struct VoxelGrid {
+    /// Dense: per voxel of the box, its entry in `voxels`, or [`EMPTY`].
+    slots: Vec<u32>,
+    /// Dense: each occupied voxel's sum, in the order of their first points.
+    voxels: Vec<Sum>,
+    /// Sorted: packed `(voxel key, point index)` words, sorted in place.
+    words: Vec<u64>,
+    /// Sorted: the radix sort's other buffer.
+    scratch: Vec<u64>,
+    /// Sorted: the radix sort's digit counts.
+    counts: Vec<u32>,
+    /// The way the last call took.
+    way: Way,
+}
+
+/// How [`VoxelGrid::downsample`] went about a cloud.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) enum Way {
+    /// A slot per voxel of the box.
+    #[default]
+    Dense,
+    /// A radix sort of packed words.
+    Sorted,
+    /// [`voxel_downsample`] itself (what neither way takes; errors).
+    Definition,
+}
+
+/// A voxel's points so far.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sum {
+    sum: [f64; 3],
+    count: u32,
+}
+
+const EMPTY: u32 = u32::MAX;
+
+/// Most voxels in the box for the dense way, beyond `2·n`: a slot is 4 bytes, written and read
+/// once a call, so at most 8 bytes a point and 256 KiB.
+const DENSE_SLACK: u64 = 1 << 16;
+
+/// Widest radix digit: 4,096 counters (16 KiB) per stream stay in the L1 cache.
+const MAX_DIGIT_BITS: u32 = 12;
+
+/// The least and greatest coordinates of a cloud, per axis, and whether one is NaN.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    min: [f32; 3],
+    max: [f32; 3],
+    nan: bool,
+}
+
+/// The range of voxel indices of a cloud, per axis.
+#[derive(Clone, Copy, Debug)]
+struct CellBox {
+    /// Least voxel index per axis.
+    lo: [i64; 3],
+    /// Greatest voxel index per axis.
+    hi: [i64; 3],
+}
+
+/// How a cloud's voxel indices pack into a word: `key << index_bits | point index`.
+#[derive(Clone, Copy, Debug)]
+struct Packing {
+    cells: CellBox,
+    /// Left shift of each axis's relative index within the word.
+    shift: [u32; 3],
+    /// Bits of the point index (the low bits of the word).
+    index_bits: u32,
+    /// Bits of the key (above the point index).
+    key_bits: u32,
+}
+
+impl VoxelGrid {
+    /// An empty grid (buffers grow on first use).
+    pub fn new() -> VoxelGrid {
+        VoxelGrid::default()
+    }
+
+    /// One centroid per voxel of edge `voxel_m` of `points`, in `out` (cleared first).
+    pub fn downsample(
+        &mut self,
+        points: &[[f32; 3]],
+        voxel_m: f64,
+        out: &mut Vec<[f32; 3]>,
+    ) -> Result<(), VoxelError> {
+        self.downsample_within(points, &Bounds::of(points), voxel_m, out)
+    }
+
+    /// [`VoxelGrid::downsample`] of `points`, whose bounds are `bounds`.
+    fn downsample_within(
+        &mut self,
+        points: &[[f32; 3]],
+        bounds: &Bounds,
+        voxel_m: f64,
+        out: &mut Vec<[f32; 3]>,
+    ) -> Result<(), VoxelError> {
+        out.clear();
+        if !(voxel_m > 0.0 && voxel_m.is_finite()) {
+            return Err(VoxelError::InvalidSize { value: voxel_m });
+        }
+        if points.is_empty() {
+            return Ok(());
+        }
+        // Entries and radix counts are u32.
+        let cells = CellBox::of(bounds, voxel_m).filter(|_| points.len() <= EMPTY as usize);
+        let dense_limit = 2 * points.len() as u64 + DENSE_SLACK;
+        let volume = cells.and_then(|c| c.volume()).filter(|&v| v <= dense_limit);
+        let packing = cells.and_then(|c| Packing::new(c, points.len()));
+        match (cells, volume, packing) {
+            (Some(cells), Some(volume), _) => {
+                self.way = Way::Dense;
+                self.dense(points, voxel_m, &cells, volume as usize, out);
+            }
+            (_, _, Some(packing)) => {
+                self.way = Way::Sorted;
+                self.sort(points, voxel_m, &packing);
+                centroids(&self.words, packing.index_bits, points, out);
+            }
+            _ => {
+                self.way = Way::Definition;
+                out.extend(voxel_downsample(points, voxel_m)?);
+            }
+        }
+        Ok(())
+    }
+
+    /// The way the last call took (to test each).
+    #[cfg(test)]
+    pub(super) fn way(&self) -> Way {
+        self.way
+    }
+
+    /// The dense way: a slot per voxel of `cells` (`volume` of them).
+    fn dense(
+        &mut self,
+        points: &[[f32; 3]],
+        voxel_m: f64,
+        cells: &CellBox,
+        volume: usize,
+        out: &mut Vec<[f32; 3]>,
+    ) {
+        let [_, ny, nz] = cells.extent();
+        self.slots.clear();
+        self.slots.resize(volume, EMPTY);
+        self.voxels.clear();
+        for p in points {
+            let [i, j, k] = cells.relative(p, voxel_m);
+            // Inside the box: i < nx, j < ny, k < nz.
+            let Some(slot) = self.slots.get_mut((i * ny + j) * nz + k) else {
+                continue;
+            };
+            if *slot == EMPTY {
+                *slot = self.voxels.len() as u32;
+                self.voxels.push(Sum::default());
+            }
+            let Some(v) = self.voxels.get_mut(*slot as usize) else {
+                continue;
+            };
+            for (s, c) in v.sum.iter_mut().zip(p) {
+                *s += f64::from(*c);
+            }
+            v.count += 1;
+        }
+        let voxels = &self.voxels;
+        out.extend(
+            self.slots
+                .iter()
+                .filter_map(|&s| voxels.get(s as usize))
+                .map(|v| v.sum.map(|s| (s / f64::from(v.count)) as f32)),
+        );
+    }
+
+    /// The sorted way: `points`' words sorted (stable), least significant digit first.
+    fn sort(&mut self, points: &[[f32; 3]], voxel_m: f64, packing: &Packing) {
+        self.words.clear();
+        self.words.extend(
+            points
+                .iter()
+                .enumerate()
+                .map(|(i, p)| packing.word(i, p, voxel_m)),
+        );
+        let passes = packing.key_bits.div_ceil(MAX_DIGIT_BITS);
+        if passes == 0 {
+            return;
+        }
+        let width = packing.key_bits.div_ceil(passes);
+        self.scratch.clear();
+        self.scratch.resize(self.words.len(), 0);
+        for pass in 0..passes {
+            // Below 64: (passes − 1) · width < key_bits ≤ 64 − index_bits.
+            let digit = Digit {
+                shift: packing.index_bits + pass * width,
+                mask: (1 << width) - 1,
+            };
+            if counting_pass(&self.words, &mut self.scratch, &mut self.counts, digit) {
+                std::mem::swap(&mut self.words, &mut self.scratch);
+            }
+        }
+    }
+
+    /// [`VoxelGrid::downsample`] at `voxel_m` (none: every point), then, while more than
+    /// `max_points` remain, again at a coarser voxel (the edge grows by `√(n / max)`, a
+    /// surface's points scaling with `1/edge²`, at least 10 %). Returns the edge used and whether
+    /// the budget acted.
+    pub fn downsample_to_budget(
+        &mut self,
+        points: &[[f32; 3]],
+        voxel_m: Option<f64>,
+        max_points: usize,
+        out: &mut Vec<[f32; 3]>,
+    ) -> Result<(Option<f64>, bool), VoxelError> {
+        // The same points every round: their bounds once.
+        let mut bounds = None;
+        let mut bounds = || *bounds.get_or_insert_with(|| Bounds::of(points));
+        match voxel_m {
+            Some(v) => self.downsample_within(points, &bounds(), v, out)?,
+            None => {
+                out.clear();
+                out.extend_from_slice(points);
+            }
+        }
+        let max = max_points.max(1);
+        let mut voxel = voxel_m;
+        let mut acted = false;
+        for _ in 0..16 {
+            if out.len() <= max {
+                break;
+            }
+            acted = true;
+            let grow = (out.len() as f64 / max as f64).sqrt().max(1.1);
+            let next = match voxel {
+                Some(v) => v * grow,
+                None => initial_voxel(out) * grow,
+            };
+            voxel = Some(next);
+            // Coarsen from the original points: the centroids stay those of the points.
+            self.downsample_within(points, &bounds(), next, out)?;
+        }
+        Ok((voxel, acted))
+    }
+}
+
+impl Bounds {
+    /// The bounds of `points`. Comparisons, not `f32::min`: one instruction each. A NaN never
+    /// compares less or greater (so it is flagged instead).
+    fn of(points: &[[f32; 3]]) -> Bounds {
+        let mut b = Bounds {
+            min: [f32::INFINITY; 3],
+            max: [f32::NEG_INFINITY; 3],
+            nan: false,
+        };
+        for p in points {
+            for (k, &c) in p.iter().enumerate() {
+                b.nan |= c.is_nan();
+                b.min[k] = if c < b.min[k] { c } else { b.min[k] };
+                b.max[k] = if c > b.max[k] { c } else { b.max[k] };
+            }
+        }
+        b
+    }
+}
+
+impl CellBox {
+    /// The voxel index range of points within `bounds` (of at least one point) at `voxel_m`, or
+    /// `None` if a coordinate is NaN or an index is not below 2^51 in magnitude (an infinity
+    /// among them).
+    fn of(bounds: &Bounds, voxel_m: f64) -> Option<CellBox> {
+        if bounds.nan {
+            return None;
+        }
+        let mut cells = CellBox {
+            lo: [0; 3],
+            hi: [0; 3],
+        };
+        for k in 0..3 {
+            cells.lo[k] = checked_cell(bounds.min[k], voxel_m)?;
+            cells.hi[k] = checked_cell(bounds.max[k], voxel_m)?;
+        }
+        Some(cells)
+    }
+
+    /// Voxels per axis (below 2^52 each).
+    fn extent(&self) -> [usize; 3] {
+        std::array::from_fn(|k| (self.hi[k] - self.lo[k] + 1) as usize)
+    }
+
+    /// Voxels in the box, if below 2^64.
+    fn volume(&self) -> Option<u64> {
+        let [x, y, z] = self.extent().map(|e| e as u64);
+        x.checked_mul(y)?.checked_mul(z)
+    }
+
+    /// The voxel index of `p` (inside the box) relative to the box's lowest.
+    #[inline(always)]
+    fn relative(&self, p: &[f32; 3], voxel_m: f64) -> [usize; 3] {
+        std::array::from_fn(|k| {
+            let c = cell(p[k], voxel_m);
+            debug_assert!(
+                (self.lo[k]..=self.hi[k]).contains(&c),
+                "{p:?} outside the box"
+            );
+            (c - self.lo[k]) as usize
+        })
+    }
+}
+
+impl Packing {
+    /// The packing of `n` points in `cells`, or `None` if key and index need more than 64 bits.
+    fn new(cells: CellBox, n: usize) -> Option<Packing> {
+        let bits = cells
+            .extent()
+            .map(|e| usize::BITS - (e - 1).leading_zeros());
+        let index_bits = usize::BITS - n.saturating_sub(1).leading_zeros();
+        let key_bits = bits[0] + bits[1] + bits[2];
+        if index_bits + key_bits > u64::BITS {
+            return None;
+        }
+        // An axis of one voxel has no bits (and a shift that may be 64: not used).
+        let at = |s: u32, b: u32| if b == 0 { 0 } else { s };
+        Some(Packing {
+            cells,
+            shift: [
+                at(index_bits + bits[1] + bits[2], bits[0]),
+                at(index_bits + bits[2], bits[1]),
+                at(index_bits, bits[2]),
+            ],
+            index_bits,
+            key_bits,
+        })
+    }
+
+    /// The word of point `index`, `p` (inside the box).
+    #[inline(always)]
+    fn word(&self, index: usize, p: &[f32; 3], voxel_m: f64) -> u64 {
+        let rel = self.cells.relative(p, voxel_m);
+        let mut word = index as u64;
+        for (r, s) in rel.into_iter().zip(self.shift) {
+            word |= (r as u64) << s;
+        }
+        word
+    }
+}
+
+/// `⌊c / voxel_m⌋`, the quotient rounded as [`voxel_downsample`] rounds it, for `|c / voxel_m|`
+/// below 2^51 (`checked_cell` checks that).
+#[inline(always)]
+fn cell(c: f32, voxel_m: f64) -> i64 {
+    floor(f64::from(c) / voxel_m)
+}
+
+/// `⌊q⌋` for `|q|` < 2^51, without the libm call the baseline x86-64 target makes for
+/// `f64::floor` (SSE2 has no rounding instruction) or the range checks of a saturating `as`.
+/// Adding 1.5 · 2^52 rounds `q` to an integer `n` (every f64 in [2^52, 2^53) is one, and
+/// consecutive integers have consecutive bit patterns there, so `n` is read from the bits);
+/// `n − 1` where that rounded up.
+#[inline(always)]
+fn floor(q: f64) -> i64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
+    let r = q + MAGIC;
+    let n = r.to_bits() as i64 - MAGIC.to_bits() as i64;
+    n - i64::from(r - MAGIC > q)
+}
+
+/// [`cell`], or `None` if the quotient is not finite or not below 2^51 in magnitude.
+fn checked_cell(c: f32, voxel_m: f64) -> Option<i64> {
+    const LIMIT: f64 = 2_251_799_813_685_248.0; // 2^51
+    let q = f64::from(c) / voxel_m;
+    (q.abs() < LIMIT).then(|| cell(c, voxel_m))
+}
+
+/// One radix digit of a word: `(word >> shift) & mask`.
+#[derive(Clone, Copy, Debug)]
+struct Digit {
+    shift: u32,
+    mask: u64,
+}
+
+impl Digit {
+    #[inline(always)]
+    fn of(self, word: u64) -> usize {
+        ((word >> self.shift) & self.mask) as usize
+    }
+}
+
+/// Words a counting pass reads in step: a camera's consecutive points share their low digits,
+/// so one stream would increment the same counter back to back, each increment waiting for the
+/// last; four streams (the quarters of the words, each with counters of its own) keep four
+/// increments in flight.
+const STREAMS: usize = 4;
+
+/// Moves `src` into `dst` ordered by `digit`, stably, and returns true; or returns false (and
+/// leaves `dst` as it was) if every word has the same digit.
+fn counting_pass(src: &[u64], dst: &mut [u64], counts: &mut Vec<u32>, digit: Digit) -> bool {
+    let buckets = digit.mask as usize + 1;
+    let quarter = src.len().div_ceil(STREAMS);
+    let streams: [&[u64]; STREAMS] = std::array::from_fn(|s| {
+        let start = (s * quarter).min(src.len());
+        &src[start..(start + quarter).min(src.len())]
+    });
+    // Counts a u32: `src` holds at most 2^32 − 1 words (`VoxelGrid::downsample_within`).
+    counts.clear();
+    counts.resize(STREAMS * buckets, 0);
+    in_step(streams, |s, w| counts[s * buckets + digit.of(w)] += 1);
+    // Stream s's words of digit d go after every word of a smaller digit and after stream
+    // s − 1's words of digit d: the order within a digit stays the input order.
+    let mut start = 0u32;
+    for d in 0..buckets {
+        let total: u32 = (0..STREAMS).map(|s| counts[s * buckets + d]).sum();
+        if total as usize == src.len() {
+            return false;
+        }
+        for s in 0..STREAMS {
+            let c = &mut counts[s * buckets + d];
+            (*c, start) = (start, start + *c);
+        }
+    }
+    in_step(streams, |s, w| {
+        let slot = &mut counts[s * buckets + digit.of(w)];
+        dst[*slot as usize] = w;
+        *slot += 1;
+    });
+    true
+}
+
+/// Calls `f(s, word)` for every word of every stream, in order within a stream, the streams
+/// in turn word by word.
+#[inline(always)]
+fn in_step(streams: [&[u64]; STREAMS], mut f: impl FnMut(usize, u64)) {
+    let len = streams[0].len();
+    for i in 0..len {
+        for (s, stream) in streams.iter().enumerate() {
+            if let Some(&w) = stream.get(i) {
+                f(s, w);
+            }
+        }
+    }
+}
+
+/// The centroid of each run of equal keys of the sorted `words`, in order, appended to `out`.
+fn centroids(words: &[u64], index_bits: u32, points: &[[f32; 3]], out: &mut Vec<[f32; 3]>) {
+    let index_mask = u64::MAX.checked_shr(u64::BITS - index_bits).unwrap_or(0);
+    let mut rest = words;
+    while let Some(&first) = rest.first() {
+        let key = first & !index_mask;
+        let mut sum = [0.0f64; 3];
+        let mut len = 0usize;
+        for &w in rest.iter().take_while(|&&w| w & !index_mask == key) {
+            let p = points[(w & index_mask) as usize];
+            for k in 0..3 {
+                sum[k] += f64::from(p[k]);
+            }
+            len += 1;
+        }
+        out.push(sum.map(|s| (s / len as f64) as f32));
+        rest = &rest[len..];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floor_is_f64_floor_below_2_pow_51() {
+        let limit = 2_251_799_813_685_248.0f64; // 2^51
+        let mut qs = vec![0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 1e-300, -1e-300];
+        for m in [
+            1.0,
+            3.0,
+            1e6,
+            4_503_599_627_370_495.0 / 2.0,
+            limit / 2.0,
+            limit,
+        ] {
+            for q in [m, -m] {
+                qs.extend([q, q.next_up(), q.next_down(), q + 0.5, q - 0.5]);
+            }
+        }
+        for q in qs.into_iter().filter(|q: &f64| q.abs() < limit) {
+            assert_eq!(floor(q), q.floor() as i64, "{q:e}");
+        }
+    }
+}
