@@ -252,52 +252,83 @@ pub struct DecodeCounts {
 /// Decodes every finite point of `msg` (laid out as `layout`, from [`Layout::of`]), maps it by
 /// `camera_to_base` (base ← camera) and appends it to `out` (cleared first). Allocates only if
 /// `out` is too small.
+///
+/// The usual layout (`x`, `y`, `z` consecutive little-endian `float32`, as every depth camera
+/// and lidar driver sends) has a loop of its own; any other reads each coordinate by its type and
+/// byte order. Both compute the same: the coordinates in `f64`, `R·p + t` summed left to right,
+/// rounded to `f32` once.
 pub fn decode_into(
     msg: &PointCloud2,
     layout: &Layout,
     camera_to_base: &Pose,
     out: &mut Vec<[f32; 3]>,
 ) -> DecodeCounts {
-    out.clear();
-    out.reserve(layout.len());
-    let mut counts = DecodeCounts {
-        declared: layout.len(),
-        ..DecodeCounts::default()
-    };
+    let [x, y, z] = layout.xyz;
+    let packed = !(layout.big_endian || x.float64 || y.float64 || z.float64)
+        && y.offset == x.offset + 4
+        && z.offset == x.offset + 8;
+    if packed {
+        decode_with(msg, layout, camera_to_base, out, |point| {
+            let b = point.get(x.offset..)?.first_chunk::<12>()?;
+            let f = |i: usize| f64::from(f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]));
+            Some([f(0), f(4), f(8)])
+        })
+    } else {
+        decode_with(msg, layout, camera_to_base, out, |point| {
+            Some(layout.xyz.map(|c| read(point, c, layout.big_endian)))
+        })
+    }
+}
+
+/// [`decode_into`] with `read_xyz` reading a point's coordinates (`None`: not inside the point,
+/// which [`Layout::of`] rules out).
+#[inline(always)]
+fn decode_with(
+    msg: &PointCloud2,
+    layout: &Layout,
+    camera_to_base: &Pose,
+    out: &mut Vec<[f32; 3]>,
+    read_xyz: impl Fn(&[u8]) -> Option<[f64; 3]>,
+) -> DecodeCounts {
+    // Every point is written at `kept`, which moves on only for a point kept: no branch per
+    // point, and `out` sized once (only its growth beyond the last frame is filled).
+    out.resize(layout.len(), [0.0; 3]);
+    let mut kept = 0;
+    let mut non_finite = 0;
     let data = msg.data.0.as_slice();
     let r = camera_to_base.rotation;
     let t = camera_to_base.translation_m;
     let limit = f64::from(mmt::cloud::CloudFrame::MAX_ABS_COORDINATE_M);
-    for row in 0..layout.height {
-        let row_start = row * layout.row_step;
+    let points = (0..layout.height).flat_map(|row| {
+        let start = row * layout.row_step;
         // Layout::of checked that every row's points lie inside `data`.
-        let Some(row_bytes) = data.get(row_start..row_start + layout.width * layout.point_step)
-        else {
-            break;
-        };
-        for point in row_bytes.chunks_exact(layout.point_step) {
-            let p = [
-                read(point, layout.xyz[0], layout.big_endian),
-                read(point, layout.xyz[1], layout.big_endian),
-                read(point, layout.xyz[2], layout.big_endian),
-            ];
-            if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()) {
-                counts.non_finite += 1;
-                continue;
-            }
-            let w = [
-                r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + t[0],
-                r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + t[1],
-                r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + t[2],
-            ];
-            if !(w[0].abs() <= limit && w[1].abs() <= limit && w[2].abs() <= limit) {
-                counts.out_of_range += 1;
-                continue;
-            }
-            out.push([w[0] as f32, w[1] as f32, w[2] as f32]);
+        let bytes = data.get(start..start + layout.width * layout.point_step);
+        bytes.unwrap_or_default().chunks_exact(layout.point_step)
+    });
+    for point in points {
+        let p = read_xyz(point).unwrap_or([f64::NAN; 3]);
+        let w = [
+            r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + t[0],
+            r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + t[1],
+            r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + t[2],
+        ];
+        // A non-finite coordinate makes every `w` NaN or infinite, so this one test keeps a
+        // point; a point it drops is non-finite or else out of range. `&`, not `&&`: no branch.
+        let ok = (w[0].abs() <= limit) & (w[1].abs() <= limit) & (w[2].abs() <= limit);
+        let finite = (p[0] * 0.0 + p[1] * 0.0 + p[2] * 0.0) == 0.0;
+        // kept ≤ points read ≤ out.len().
+        if let Some(slot) = out.get_mut(kept) {
+            *slot = [w[0] as f32, w[1] as f32, w[2] as f32];
         }
+        kept += usize::from(ok);
+        non_finite += usize::from(!finite);
     }
-    counts
+    out.truncate(kept);
+    DecodeCounts {
+        declared: layout.len(),
+        non_finite,
+        out_of_range: layout.len() - kept - non_finite,
+    }
 }
 
 #[inline(always)]

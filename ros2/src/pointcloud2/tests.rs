@@ -334,6 +334,45 @@ fn an_organised_640_by_480_frame_with_holes() {
     );
 }
 
+#[test]
+fn the_packed_loop_and_the_general_one_agree_bit_for_bit() {
+    let mut pts = points(60);
+    pts[3] = [f64::NAN, 0.0, 0.0];
+    pts[10][2] = f64::INFINITY;
+    pts[11] = [f64::NEG_INFINITY, f64::NAN, 1.0];
+    pts[20] = [2.0e6, 0.0, 0.0]; // beyond the frame limit once transformed
+    pts[21] = [-0.0, 0.0, -0.0];
+    pts[22] = [1e-40, -1e-45, 3.0e38];
+    let pose = Pose::from_rotation_vector([0.3, -0.2, 0.1], [0.1, 0.0, 0.5]);
+    let packed = Spec {
+        fields: vec![("x", 4, F32, 1), ("y", 8, F32, 1), ("z", 12, F32, 1)],
+        point_step: 20,
+        ..xyz_packed()
+    };
+    let (a, counts) = decode(&build(&pts, &packed), &pose);
+    let big_endian = Spec {
+        big_endian: true,
+        ..packed
+    };
+    let (b, counts_b) = decode(&build(&pts, &big_endian), &pose);
+    let bits = |p: &[[f32; 3]]| p.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+    assert_eq!((bits(&a), counts), (bits(&b), counts_b));
+    assert_eq!(
+        (counts.non_finite, counts.out_of_range, a.len()),
+        (3, 2, 55)
+    );
+    // Each kept point is R·p + t in f64, left to right, rounded to f32 once.
+    let (r, t) = (pose.rotation, pose.translation_m);
+    let want: Vec<[f32; 3]> = pts
+        .iter()
+        .map(|p| p.map(|c| f64::from(c as f32)))
+        .map(|p| std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + t[i]))
+        .filter(|w: &[f64; 3]| w.iter().all(|c| c.abs() <= 1e6))
+        .map(|w| w.map(|c| c as f32))
+        .collect();
+    assert_eq!(bits(&a), bits(&want));
+}
+
 fn refused(msg: &PointCloud2) -> DecodeError {
     Layout::of(msg).unwrap_err()
 }
