@@ -13,6 +13,7 @@
 use thiserror::Error;
 
 mod grid;
+mod radix;
 
 pub use grid::VoxelGrid;
 

@@ -3,52 +3,68 @@
 //!
 //! One read of the points gives their bounding box and from it each axis's range of voxel
 //! indices (`⌊c / s⌋` is non-decreasing in `c`, so the box's corners hold the least and the
-//! greatest index). Then one of two ways, both giving [`super::voxel_downsample`]'s result bit
-//! for bit (each voxel's points summed in `f64` from 0 in input order, voxels in index order):
+//! greatest index). Then the points are grouped into voxels one of two ways, and the groups'
+//! centroids emitted; both give [`super::voxel_downsample`]'s result bit for bit (each voxel's
+//! points summed in `f64` from 0 in input order, voxels in index order):
 //! - **dense**, when the box holds at most `2·n + 65,536` voxels (a camera's surface: a
-//!   0.6 × 0.5 m table at 3 mm is 207 × 157 × 2): a slot per voxel of the box, an entry per
-//!   occupied voxel, made at its first point, to which each point is added in input order; then
-//!   the slots in index order;
+//!   0.6 × 0.5 m table at 3 mm is 207 × 157 × 2): a slot per voxel of the box numbers the voxels
+//!   in the order of their first points and gives each point its voxel's number; the sums then
+//!   run over the points in order, and the slots, read in index order, emit them;
 //! - **sorted**, otherwise: each point's voxel index relative to the box's lowest, packed into
 //!   as few bits as the ranges need (`i` above `j` above `k`: the packed order is the
 //!   lexicographic one) above the point's index; a least-significant-digit radix sort of those
-//!   words (at most 12 bits a pass; stable, so a voxel's points stay in input order); one run
-//!   over the sorted words sums each voxel.
+//!   words ([`super::radix`]; stable, so a voxel's points stay in input order); one run over
+//!   the sorted words sums each voxel.
+//!
+//! Grouping alone counts the voxels, which is all a round of the point budget needs: its
+//! centroids are summed once, at the edge the rounds end on.
 //!
 //! A cloud neither way takes (a non-finite coordinate; a voxel index beyond ±2^51; key and
 //! point-index bits beyond 64, e.g. 300,000 points over 2^45 voxels) goes to
 //! [`super::voxel_downsample`] itself, which also names the point of any error.
 
-use super::{VoxelError, initial_voxel, voxel_downsample};
+use super::{VoxelError, initial_voxel, radix, voxel_downsample};
 
 /// [`voxel_downsample`] with buffers kept between calls, for a camera stream. The output is the
 /// same, bit for bit: centroids summed in `f64` in input order, ordered by voxel index. Allocates
 /// only while its buffers grow to the largest frame seen.
 #[derive(Debug, Default)]
 pub struct VoxelGrid {
-    /// Dense: per voxel of the box, its entry in `voxels`, or [`EMPTY`].
+    /// Dense: per voxel of the box, its number (in the order of first points), or [`EMPTY`].
     slots: Vec<u32>,
-    /// Dense: each occupied voxel's sum, in the order of their first points.
-    voxels: Vec<Sum>,
+    /// Dense: per point, its voxel's number.
+    voxel_of: Vec<u32>,
+    /// Dense: per voxel number, the sum of its points.
+    sums: Vec<Sum>,
     /// Sorted: packed `(voxel key, point index)` words, sorted in place.
     words: Vec<u64>,
     /// Sorted: the radix sort's other buffer.
     scratch: Vec<u64>,
     /// Sorted: the radix sort's digit counts.
     counts: Vec<u32>,
-    /// The way the last call took.
+    /// Definition: its answer.
+    definition: Vec<[f32; 3]>,
+    /// How the last grouping went, which says what the buffers hold.
     way: Way,
 }
 
-/// How [`VoxelGrid::downsample`] went about a cloud.
+/// How [`VoxelGrid`] grouped the last cloud into voxels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) enum Way {
-    /// A slot per voxel of the box.
+    /// No points.
     #[default]
-    Dense,
-    /// A radix sort of packed words.
-    Sorted,
-    /// [`voxel_downsample`] itself (what neither way takes; errors).
+    Empty,
+    /// A slot per voxel of the box; `voxels` of them occupied.
+    Dense {
+        /// Occupied voxels.
+        voxels: usize,
+    },
+    /// The words sorted, the point index in their low `index_bits`.
+    Sorted {
+        /// Bits of the point index.
+        index_bits: u32,
+    },
+    /// [`voxel_downsample`] itself (what neither way takes).
     Definition,
 }
 
@@ -64,9 +80,6 @@ const EMPTY: u32 = u32::MAX;
 /// Most voxels in the box for the dense way, beyond `2·n`: a slot is 4 bytes, written and read
 /// once a call, so at most 8 bytes a point and 256 KiB.
 const DENSE_SLACK: u64 = 1 << 16;
-
-/// Widest radix digit: 4,096 counters (16 KiB) per stream stay in the L1 cache.
-const MAX_DIGIT_BITS: u32 = 12;
 
 /// The least and greatest coordinates of a cloud, per axis, and whether one is NaN.
 #[derive(Clone, Copy, Debug)]
@@ -110,125 +123,18 @@ impl VoxelGrid {
         voxel_m: f64,
         out: &mut Vec<[f32; 3]>,
     ) -> Result<(), VoxelError> {
-        self.downsample_within(points, &Bounds::of(points), voxel_m, out)
-    }
-
-    /// [`VoxelGrid::downsample`] of `points`, whose bounds are `bounds`.
-    fn downsample_within(
-        &mut self,
-        points: &[[f32; 3]],
-        bounds: &Bounds,
-        voxel_m: f64,
-        out: &mut Vec<[f32; 3]>,
-    ) -> Result<(), VoxelError> {
         out.clear();
-        if !(voxel_m > 0.0 && voxel_m.is_finite()) {
-            return Err(VoxelError::InvalidSize { value: voxel_m });
-        }
-        if points.is_empty() {
-            return Ok(());
-        }
-        // Entries and radix counts are u32.
-        let cells = CellBox::of(bounds, voxel_m).filter(|_| points.len() <= EMPTY as usize);
-        let dense_limit = 2 * points.len() as u64 + DENSE_SLACK;
-        let volume = cells.and_then(|c| c.volume()).filter(|&v| v <= dense_limit);
-        let packing = cells.and_then(|c| Packing::new(c, points.len()));
-        match (cells, volume, packing) {
-            (Some(cells), Some(volume), _) => {
-                self.way = Way::Dense;
-                self.dense(points, voxel_m, &cells, volume as usize, out);
-            }
-            (_, _, Some(packing)) => {
-                self.way = Way::Sorted;
-                self.sort(points, voxel_m, &packing);
-                centroids(&self.words, packing.index_bits, points, out);
-            }
-            _ => {
-                self.way = Way::Definition;
-                out.extend(voxel_downsample(points, voxel_m)?);
-            }
-        }
+        self.group(points, &Bounds::of(points), voxel_m)?;
+        self.emit(points, out);
         Ok(())
-    }
-
-    /// The way the last call took (to test each).
-    #[cfg(test)]
-    pub(super) fn way(&self) -> Way {
-        self.way
-    }
-
-    /// The dense way: a slot per voxel of `cells` (`volume` of them).
-    fn dense(
-        &mut self,
-        points: &[[f32; 3]],
-        voxel_m: f64,
-        cells: &CellBox,
-        volume: usize,
-        out: &mut Vec<[f32; 3]>,
-    ) {
-        let [_, ny, nz] = cells.extent();
-        self.slots.clear();
-        self.slots.resize(volume, EMPTY);
-        self.voxels.clear();
-        for p in points {
-            let [i, j, k] = cells.relative(p, voxel_m);
-            // Inside the box: i < nx, j < ny, k < nz.
-            let Some(slot) = self.slots.get_mut((i * ny + j) * nz + k) else {
-                continue;
-            };
-            if *slot == EMPTY {
-                *slot = self.voxels.len() as u32;
-                self.voxels.push(Sum::default());
-            }
-            let Some(v) = self.voxels.get_mut(*slot as usize) else {
-                continue;
-            };
-            for (s, c) in v.sum.iter_mut().zip(p) {
-                *s += f64::from(*c);
-            }
-            v.count += 1;
-        }
-        let voxels = &self.voxels;
-        out.extend(
-            self.slots
-                .iter()
-                .filter_map(|&s| voxels.get(s as usize))
-                .map(|v| v.sum.map(|s| (s / f64::from(v.count)) as f32)),
-        );
-    }
-
-    /// The sorted way: `points`' words sorted (stable), least significant digit first.
-    fn sort(&mut self, points: &[[f32; 3]], voxel_m: f64, packing: &Packing) {
-        self.words.clear();
-        self.words.extend(
-            points
-                .iter()
-                .enumerate()
-                .map(|(i, p)| packing.word(i, p, voxel_m)),
-        );
-        let passes = packing.key_bits.div_ceil(MAX_DIGIT_BITS);
-        if passes == 0 {
-            return;
-        }
-        let width = packing.key_bits.div_ceil(passes);
-        self.scratch.clear();
-        self.scratch.resize(self.words.len(), 0);
-        for pass in 0..passes {
-            // Below 64: (passes − 1) · width < key_bits ≤ 64 − index_bits.
-            let digit = Digit {
-                shift: packing.index_bits + pass * width,
-                mask: (1 << width) - 1,
-            };
-            if counting_pass(&self.words, &mut self.scratch, &mut self.counts, digit) {
-                std::mem::swap(&mut self.words, &mut self.scratch);
-            }
-        }
     }
 
     /// [`VoxelGrid::downsample`] at `voxel_m` (none: every point), then, while more than
     /// `max_points` remain, again at a coarser voxel (the edge grows by `√(n / max)`, a
     /// surface's points scaling with `1/edge²`, at least 10 %). Returns the edge used and whether
     /// the budget acted.
+    ///
+    /// A round needs only the number of voxels: the centroids are summed once, for the last.
     pub fn downsample_to_budget(
         &mut self,
         points: &[[f32; 3]],
@@ -236,52 +142,201 @@ impl VoxelGrid {
         max_points: usize,
         out: &mut Vec<[f32; 3]>,
     ) -> Result<(Option<f64>, bool), VoxelError> {
+        out.clear();
         // The same points every round: their bounds once.
         let mut bounds = None;
         let mut bounds = || *bounds.get_or_insert_with(|| Bounds::of(points));
-        match voxel_m {
-            Some(v) => self.downsample_within(points, &bounds(), v, out)?,
-            None => {
-                out.clear();
-                out.extend_from_slice(points);
-            }
-        }
+        let mut kept = match voxel_m {
+            Some(v) => self.group(points, &bounds(), v)?,
+            None => points.len(),
+        };
         let max = max_points.max(1);
         let mut voxel = voxel_m;
         let mut acted = false;
         for _ in 0..16 {
-            if out.len() <= max {
+            if kept <= max {
                 break;
             }
             acted = true;
-            let grow = (out.len() as f64 / max as f64).sqrt().max(1.1);
+            let grow = (kept as f64 / max as f64).sqrt().max(1.1);
             let next = match voxel {
                 Some(v) => v * grow,
-                None => initial_voxel(out) * grow,
+                None => initial_voxel(points) * grow,
             };
             voxel = Some(next);
             // Coarsen from the original points: the centroids stay those of the points.
-            self.downsample_within(points, &bounds(), next, out)?;
+            kept = self.group(points, &bounds(), next)?;
+        }
+        match voxel {
+            Some(_) => self.emit(points, out),
+            None => out.extend_from_slice(points),
         }
         Ok((voxel, acted))
+    }
+
+    /// Groups `points` (within `bounds`) into voxels of edge `voxel_m`, for [`VoxelGrid::emit`];
+    /// returns the number of voxels.
+    fn group(
+        &mut self,
+        points: &[[f32; 3]],
+        bounds: &Bounds,
+        voxel_m: f64,
+    ) -> Result<usize, VoxelError> {
+        if !(voxel_m > 0.0 && voxel_m.is_finite()) {
+            return Err(VoxelError::InvalidSize { value: voxel_m });
+        }
+        self.way = Way::Empty;
+        if points.is_empty() {
+            return Ok(0);
+        }
+        // Voxel numbers and radix counts are u32.
+        let cells = CellBox::of(bounds, voxel_m).filter(|_| points.len() <= EMPTY as usize);
+        let dense_limit = 2 * points.len() as u64 + DENSE_SLACK;
+        let volume = cells.and_then(|c| c.volume()).filter(|&v| v <= dense_limit);
+        let packing = cells.and_then(|c| Packing::new(c, points.len()));
+        let voxels = match (cells, volume, packing) {
+            (Some(cells), Some(volume), _) => {
+                let voxels = self.assign(points, voxel_m, &cells, volume as usize);
+                self.way = Way::Dense { voxels };
+                voxels
+            }
+            (_, _, Some(packing)) => {
+                self.words.clear();
+                let words = points.iter().enumerate();
+                self.words
+                    .extend(words.map(|(i, p)| packing.word(i, p, voxel_m)));
+                let (low, bits) = (packing.index_bits, packing.key_bits);
+                radix::sort(
+                    &mut self.words,
+                    &mut self.scratch,
+                    &mut self.counts,
+                    low,
+                    bits,
+                );
+                self.way = Way::Sorted { index_bits: low };
+                let key = |w: u64| w >> low;
+                1 + self
+                    .words
+                    .windows(2)
+                    .filter(|w| key(w[0]) != key(w[1]))
+                    .count()
+            }
+            _ => {
+                // Set first, so that an error is seen to have come from here (no emit follows).
+                self.way = Way::Definition;
+                self.definition = voxel_downsample(points, voxel_m)?;
+                self.definition.len()
+            }
+        };
+        Ok(voxels)
+    }
+
+    /// The dense way's grouping: each point's voxel number, numbered in the order of first
+    /// points, through a slot per voxel of `cells` (`volume` of them). Returns the count.
+    fn assign(
+        &mut self,
+        points: &[[f32; 3]],
+        voxel_m: f64,
+        cells: &CellBox,
+        volume: usize,
+    ) -> usize {
+        let [_, ny, nz] = cells.extent();
+        self.slots.clear();
+        self.slots.resize(volume, EMPTY);
+        let slots = &mut self.slots;
+        let mut voxels = 0u32;
+        self.voxel_of.clear();
+        self.voxel_of.extend(points.iter().map(|p| {
+            let [i, j, k] = cells.relative(p, voxel_m);
+            // Inside the box (i < nx, j < ny, k < nz), so always a slot.
+            let Some(slot) = slots.get_mut((i * ny + j) * nz + k) else {
+                return EMPTY;
+            };
+            // Written only for a new voxel: the next point, most often in the same voxel,
+            // reads the slot without waiting for a store to it.
+            if *slot == EMPTY {
+                *slot = voxels;
+                voxels += 1;
+            }
+            *slot
+        }));
+        voxels as usize
+    }
+
+    /// The centroids of the last grouping of `points`, in voxel index order, into `out`.
+    fn emit(&mut self, points: &[[f32; 3]], out: &mut Vec<[f32; 3]>) {
+        out.clear();
+        match self.way {
+            Way::Empty => {}
+            Way::Dense { voxels } => {
+                self.sums.clear();
+                self.sums.resize(voxels, Sum::default());
+                for (p, &v) in points.iter().zip(&self.voxel_of) {
+                    if let Some(s) = self.sums.get_mut(v as usize) {
+                        for (s, c) in s.sum.iter_mut().zip(p) {
+                            *s += f64::from(*c);
+                        }
+                        s.count += 1;
+                    }
+                }
+                let sums = &self.sums;
+                out.extend(
+                    self.slots
+                        .iter()
+                        .filter_map(|&v| sums.get(v as usize))
+                        .map(|v| v.sum.map(|s| (s / f64::from(v.count)) as f32)),
+                );
+            }
+            Way::Sorted { index_bits } => centroids(&self.words, index_bits, points, out),
+            Way::Definition => out.extend_from_slice(&self.definition),
+        }
+    }
+
+    /// How the last call grouped its cloud (to test each way).
+    #[cfg(test)]
+    pub(super) fn way(&self) -> Way {
+        self.way
     }
 }
 
 impl Bounds {
-    /// The bounds of `points`. Comparisons, not `f32::min`: one instruction each. A NaN never
-    /// compares less or greater (so it is flagged instead).
+    /// The bounds of `points`: four points (12 coordinates, three SSE registers) at a time,
+    /// per lane, so that no comparison waits for the one before; lane `l` of the 12 holds axis
+    /// `l mod 3`. Comparisons, not `f32::min`: one instruction each. A NaN never compares less
+    /// or greater (so it is flagged instead).
     fn of(points: &[[f32; 3]]) -> Bounds {
+        let mut min = [f32::INFINITY; 12];
+        let mut max = [f32::NEG_INFINITY; 12];
+        let mut nan = [false; 12];
+        let flat = points.as_flattened();
+        let (chunks, rest) = flat.split_at(flat.len() - flat.len() % 12);
+        // The last points, padded with the first point's coordinates (of the same axes).
+        let pad = |l: usize| rest.get(l).or(flat.get(l % 3)).copied().unwrap_or(0.0);
+        let last: [f32; 12] = std::array::from_fn(pad);
+        for chunk in chunks.chunks_exact(12).chain([last.as_slice()]) {
+            for l in 0..12 {
+                let c = chunk[l];
+                nan[l] |= c.is_nan();
+                min[l] = if c < min[l] { c } else { min[l] };
+                max[l] = if c > max[l] { c } else { max[l] };
+            }
+        }
         let mut b = Bounds {
             min: [f32::INFINITY; 3],
             max: [f32::NEG_INFINITY; 3],
-            nan: false,
+            nan: nan.contains(&true),
         };
-        for p in points {
-            for (k, &c) in p.iter().enumerate() {
-                b.nan |= c.is_nan();
-                b.min[k] = if c < b.min[k] { c } else { b.min[k] };
-                b.max[k] = if c > b.max[k] { c } else { b.max[k] };
-            }
+        for l in 0..12 {
+            b.min[l % 3] = if min[l] < b.min[l % 3] {
+                min[l]
+            } else {
+                b.min[l % 3]
+            };
+            b.max[l % 3] = if max[l] > b.max[l % 3] {
+                max[l]
+            } else {
+                b.max[l % 3]
+            };
         }
         b
     }
@@ -393,74 +448,6 @@ fn checked_cell(c: f32, voxel_m: f64) -> Option<i64> {
     const LIMIT: f64 = 2_251_799_813_685_248.0; // 2^51
     let q = f64::from(c) / voxel_m;
     (q.abs() < LIMIT).then(|| cell(c, voxel_m))
-}
-
-/// One radix digit of a word: `(word >> shift) & mask`.
-#[derive(Clone, Copy, Debug)]
-struct Digit {
-    shift: u32,
-    mask: u64,
-}
-
-impl Digit {
-    #[inline(always)]
-    fn of(self, word: u64) -> usize {
-        ((word >> self.shift) & self.mask) as usize
-    }
-}
-
-/// Words a counting pass reads in step: a camera's consecutive points share their low digits,
-/// so one stream would increment the same counter back to back, each increment waiting for the
-/// last; four streams (the quarters of the words, each with counters of its own) keep four
-/// increments in flight.
-const STREAMS: usize = 4;
-
-/// Moves `src` into `dst` ordered by `digit`, stably, and returns true; or returns false (and
-/// leaves `dst` as it was) if every word has the same digit.
-fn counting_pass(src: &[u64], dst: &mut [u64], counts: &mut Vec<u32>, digit: Digit) -> bool {
-    let buckets = digit.mask as usize + 1;
-    let quarter = src.len().div_ceil(STREAMS);
-    let streams: [&[u64]; STREAMS] = std::array::from_fn(|s| {
-        let start = (s * quarter).min(src.len());
-        &src[start..(start + quarter).min(src.len())]
-    });
-    // Counts a u32: `src` holds at most 2^32 − 1 words (`VoxelGrid::downsample_within`).
-    counts.clear();
-    counts.resize(STREAMS * buckets, 0);
-    in_step(streams, |s, w| counts[s * buckets + digit.of(w)] += 1);
-    // Stream s's words of digit d go after every word of a smaller digit and after stream
-    // s − 1's words of digit d: the order within a digit stays the input order.
-    let mut start = 0u32;
-    for d in 0..buckets {
-        let total: u32 = (0..STREAMS).map(|s| counts[s * buckets + d]).sum();
-        if total as usize == src.len() {
-            return false;
-        }
-        for s in 0..STREAMS {
-            let c = &mut counts[s * buckets + d];
-            (*c, start) = (start, start + *c);
-        }
-    }
-    in_step(streams, |s, w| {
-        let slot = &mut counts[s * buckets + digit.of(w)];
-        dst[*slot as usize] = w;
-        *slot += 1;
-    });
-    true
-}
-
-/// Calls `f(s, word)` for every word of every stream, in order within a stream, the streams
-/// in turn word by word.
-#[inline(always)]
-fn in_step(streams: [&[u64]; STREAMS], mut f: impl FnMut(usize, u64)) {
-    let len = streams[0].len();
-    for i in 0..len {
-        for (s, stream) in streams.iter().enumerate() {
-            if let Some(&w) = stream.get(i) {
-                f(s, w);
-            }
-        }
-    }
 }
 
 /// The centroid of each run of equal keys of the sorted `words`, in order, appended to `out`.

@@ -42,7 +42,7 @@ fn bits(points: &[[f32; 3]]) -> Vec<[u32; 3]> {
 
 /// Checks [`voxel_downsample`] and `grid` on `points` against [`reference`], bit for bit (or
 /// the same refusal); the way the grid took.
-fn check(grid: &mut VoxelGrid, points: &[[f32; 3]], voxel_m: f64) -> Way {
+fn check(grid: &mut VoxelGrid, points: &[[f32; 3]], voxel_m: f64) -> &'static str {
     let mut out = vec![[9.0; 3]]; // cleared by the grid
     let got = grid.downsample(points, voxel_m, &mut out);
     let definition = voxel_downsample(points, voxel_m);
@@ -64,7 +64,12 @@ fn check(grid: &mut VoxelGrid, points: &[[f32; 3]], voxel_m: f64) -> Way {
             assert_eq!(got, definition, "the grid's error is the definition's");
         }
     }
-    grid.way()
+    match grid.way() {
+        Way::Empty => "empty",
+        Way::Dense { .. } => "dense",
+        Way::Sorted { .. } => "sorted",
+        Way::Definition => "definition",
+    }
 }
 
 /// A camera-like surface: `w × h` points 1 mm apart on a rippled plane, some of them holes
@@ -89,7 +94,7 @@ fn every_way_gives_the_reference_bit_for_bit() {
     // One grid for every cloud: buffers left from a larger or another-way cloud change nothing.
     let camera = surface(200, 150, 0.6);
     for v in [0.001, 0.003, 0.0045, 0.02, 0.25, 10.0] {
-        assert_eq!(check(&mut grid, &camera, v), Way::Dense, "voxel {v}");
+        assert_eq!(check(&mut grid, &camera, v), "dense", "voxel {v}");
     }
     // Sparse: a few points over metres at 1 mm (and 10 µm: 49 key bits).
     let sparse: Vec<[f32; 3]> = camera
@@ -98,7 +103,7 @@ fn every_way_gives_the_reference_bit_for_bit() {
         .map(|p| p.map(|c| c * 9.0))
         .collect();
     for v in [0.001, 1e-5] {
-        assert_eq!(check(&mut grid, &sparse, v), Way::Sorted, "voxel {v}");
+        assert_eq!(check(&mut grid, &sparse, v), "sorted", "voxel {v}");
     }
     // Far from the origin: indices beyond ±2^20, where the hash grid this replaced fell back.
     let offset: Vec<[f32; 3]> = camera
@@ -106,19 +111,19 @@ fn every_way_gives_the_reference_bit_for_bit() {
         .step_by(13)
         .map(|p| [p[0] + 4.0e5, p[1] - 3.0e5, p[2] * 50.0])
         .collect();
-    assert_eq!(check(&mut grid, &offset, 0.01), Way::Dense);
-    assert_eq!(check(&mut grid, &offset, 1e-4), Way::Sorted);
+    assert_eq!(check(&mut grid, &offset, 0.01), "dense");
+    assert_eq!(check(&mut grid, &offset, 1e-4), "sorted");
     // ±1,000 km: at 100 m, 45 key bits; at 1 mm, 2^31 voxels an axis, more bits than a word
     // holds.
     let far = [[1.0e6, 0.0, 0.0], [-1.0e6, 1.0e6, -1.0e6], [0.5, -0.5, 1e6]];
-    assert_eq!(check(&mut grid, &far, 100.0), Way::Sorted);
-    assert_eq!(check(&mut grid, &far, 1e-3), Way::Definition);
+    assert_eq!(check(&mut grid, &far, 100.0), "sorted");
+    assert_eq!(check(&mut grid, &far, 1e-3), "definition");
     // Beyond ±2^51 voxels: the definition's own answer (2^53 still fits it).
-    assert_eq!(check(&mut grid, &far, 1e-9), Way::Definition);
-    assert_eq!(check(&mut grid, &far, 1e-12), Way::Definition); // its IndexOverflow
-    assert_eq!(check(&mut grid, &[], 0.01), Way::Definition);
+    assert_eq!(check(&mut grid, &far, 1e-9), "definition");
+    assert_eq!(check(&mut grid, &far, 1e-12), "definition"); // its IndexOverflow
+    assert_eq!(check(&mut grid, &[], 0.01), "empty");
     for single in [[0.0; 3], [-0.0; 3], [1.5, -2.5, 1e-40]] {
-        assert_eq!(check(&mut grid, &[single], 0.01), Way::Dense);
+        assert_eq!(check(&mut grid, &[single], 0.01), "dense");
     }
 }
 
@@ -133,8 +138,8 @@ fn points_on_voxel_faces_negative_zero_and_tiny_coordinates() {
             [c, c.next_down(), c.next_up()].map(|c| [c, -c, c * 0.5])
         })
         .collect();
-    assert_eq!(check(&mut grid, &faces, 0.25), Way::Dense);
-    assert_eq!(check(&mut grid, &faces, 0.1), Way::Dense);
+    assert_eq!(check(&mut grid, &faces, 0.25), "dense");
+    assert_eq!(check(&mut grid, &faces, 0.1), "dense");
     // -0.0 sums to +0.0 from 0 (a grid that started a sum from the first point kept -0.0);
     // subnormal and tiny negative coordinates fall in voxel -1.
     let tiny = [
@@ -142,8 +147,8 @@ fn points_on_voxel_faces_negative_zero_and_tiny_coordinates() {
         [-1e-45, 1e-45, -1e-38],
         [f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 0.0],
     ];
-    assert_eq!(check(&mut grid, &tiny, 0.003), Way::Dense);
-    assert_eq!(check(&mut grid, &tiny[..1], 0.003), Way::Dense);
+    assert_eq!(check(&mut grid, &tiny, 0.003), "dense");
+    assert_eq!(check(&mut grid, &tiny[..1], 0.003), "dense");
 }
 
 #[test]
@@ -152,7 +157,7 @@ fn garbage_is_refused_as_the_definition_refuses_it_never_a_panic() {
     let mut out = Vec::new();
     for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
         let points = [[0.1, 0.2, 0.3], [0.1, bad, 0.3], [bad, 0.0, 0.0]];
-        assert_eq!(check(&mut grid, &points, 0.01), Way::Definition);
+        assert_eq!(check(&mut grid, &points, 0.01), "definition");
         let e = grid.downsample(&points, 0.01, &mut out).unwrap_err();
         assert_eq!(
             e.to_string(),
@@ -340,6 +345,32 @@ fn cloud() -> impl Strategy<Value = Vec<[f32; 3]>> {
     })
 }
 
+/// The budget as it was first written (and as its doc states it): every round a full
+/// [`voxel_downsample`] from the points, the edge grown by `√(n / max)`, at least 10 %.
+fn budget_reference(
+    points: &[[f32; 3]],
+    voxel_m: Option<f64>,
+    max_points: usize,
+) -> Result<(Option<f64>, Vec<[f32; 3]>), VoxelError> {
+    let mut voxel = voxel_m;
+    let mut kept = match voxel {
+        Some(v) => voxel_downsample(points, v)?,
+        None => points.to_vec(),
+    };
+    for _ in 0..16 {
+        if kept.len() <= max_points.max(1) {
+            break;
+        }
+        let grow = (kept.len() as f64 / max_points.max(1) as f64)
+            .sqrt()
+            .max(1.1);
+        let coarser = voxel.unwrap_or_else(|| initial_voxel(points)) * grow;
+        kept = voxel_downsample(points, coarser)?;
+        voxel = Some(coarser);
+    }
+    Ok((voxel, kept))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(1024))]
 
@@ -357,8 +388,20 @@ proptest! {
         max_points in 0usize..300,
     ) {
         let mut grid = VoxelGrid::new();
-        let mut out = Vec::new();
-        let Ok((voxel, acted)) = grid.downsample_to_budget(&points, v, max_points, &mut out) else {
+        let mut out = vec![[9.0; 3]]; // cleared by the grid
+        let got = grid.downsample_to_budget(&points, v, max_points, &mut out);
+        match (&got, budget_reference(&points, v, max_points)) {
+            (Ok((voxel, _)), Ok((want_voxel, want))) => {
+                prop_assert_eq!(voxel.map(f64::to_bits), want_voxel.map(f64::to_bits));
+                prop_assert_eq!(bits(&out), bits(&want));
+            }
+            (Err(e), Err(want)) => {
+                prop_assert_eq!(format!("{e:?}"), format!("{want:?}"));
+                prop_assert!(out.is_empty());
+            }
+            (got, want) => prop_assert!(false, "{got:?} vs {want:?}"),
+        }
+        let Ok((voxel, acted)) = got else {
             prop_assert!(v.is_some_and(|v| voxel_downsample(&points, v).is_err()) || points.len() > max_points.max(1));
             return Ok(());
         };
