@@ -1,7 +1,14 @@
 //! The camera path's cost per frame: a 640×480 organised `sensor_msgs/PointCloud2` (307,200
 //! points, `realsense2_camera`'s layout, ~12 % NaN holes) decoded, transformed into the base
 //! frame and voxel-downsampled (issue 14's target: ≤ 10 ms per frame on this machine), and each
-//! stage alone.
+//! stage alone:
+//! - `decode_transform`: decoding alone;
+//! - `decode_transform_voxel_3mm`: the pipeline at 3 mm (33,545 points kept, budget idle);
+//! - `decode_transform_voxel_4.5mm_budget_20k`: at 4.5 mm (15,170 points, budget idle);
+//! - `decode_transform_voxel_3mm_budget_20k`: at 3 mm with the budget acting (two more
+//!   rounds, at 3.9 and 4.3 mm: 16,798 points), the worst case of the three;
+//! - `decode_transform_voxel_3mm_definition`: decoding and `voxel_downsample` (the sort of
+//!   every point that defines the grid's result): the baseline in the same run.
 //!
 //! ```sh
 //! cargo bench -p ros2 --bench pointcloud2
@@ -9,6 +16,7 @@
 
 use std::hint::black_box;
 
+use cloud_io::voxel::voxel_downsample;
 use criterion::{Criterion, criterion_group, criterion_main};
 use mmt::cloud::Pose;
 use ros2::msg::PointCloud2;
@@ -59,6 +67,7 @@ fn pointcloud2(c: &mut Criterion) {
             Some(0.0045),
             20_000,
         ),
+        ("decode_transform_voxel_3mm_budget_20k", Some(0.003), 20_000),
     ] {
         let mut pipeline = CloudPipeline::new(PipelineConfig {
             camera_to_base: pose,
@@ -74,6 +83,12 @@ fn pointcloud2(c: &mut Criterion) {
             })
         });
     }
+    group.bench_function("decode_transform_voxel_3mm_definition", |b| {
+        b.iter(|| {
+            decode_into(black_box(&msg), &layout, &pose, &mut decoded);
+            voxel_downsample(&decoded, 0.003).expect("finite points")
+        })
+    });
     group.finish();
 }
 
