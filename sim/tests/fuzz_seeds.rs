@@ -81,9 +81,25 @@ fn ros2_toml() -> String {
         .replace("source = \"plane\"", "source = \"ros2\"")
 }
 
+/// The simulated camera with every fault a real one has: random dropout, hole patches and
+/// depth noise, the band widened to hold it.
+fn camera_toml() -> String {
+    let text = EXP1_TOML
+        .replacen(
+            "dropout = 0.0",
+            "dropout = 0.3\nholes = 0.2\nhole_radius_m = 0.02\n\
+             depth_noise_per_m = 0.0037\ncamera_distance_m = 0.7",
+            1,
+        )
+        .replacen("r2_m = 0.006", "r2_m = 0.008", 1);
+    assert!(text.contains("holes = 0.2") && text.contains("r2_m = 0.008"));
+    text
+}
+
 fn seeds() -> Vec<(&'static str, String)> {
     vec![
         ("exp1.toml", EXP1_TOML.to_owned()),
+        ("camera.toml", camera_toml()),
         ("wall.toml", WALL_TOML.to_owned()),
         ("everything.toml", EVERYTHING_TOML.to_owned()),
         ("ros2.toml", ros2_toml()),
