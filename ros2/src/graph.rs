@@ -14,6 +14,7 @@
 use std::net::{IpAddr, Ipv4Addr};
 
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::dds::rustdds::mio1::{Interest, Poll, Token, event::Source};
 use ros2_client::qos::{Durability, History, Reliability, WhenFull};
 use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile};
 
@@ -390,6 +391,23 @@ pub(crate) fn io_error(what: &str) -> impl FnOnce(std::io::Error) -> GraphError 
     move |e| GraphError::Dds {
         what: what.to_owned(),
         reason: e.to_string(),
+    }
+}
+
+/// Registers `source` (an optional subscription: `None`, nothing) with `poll` for readable
+/// events under `token`; `what` names it in the error.
+pub(crate) fn register<S: Source>(
+    poll: &Poll,
+    source: Option<&mut S>,
+    token: Token,
+    what: &str,
+) -> Result<(), GraphError> {
+    match source {
+        Some(s) => poll
+            .registry()
+            .register(s, token, Interest::READABLE)
+            .map_err(io_error(what)),
+        None => Ok(()),
     }
 }
 

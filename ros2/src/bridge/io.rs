@@ -5,12 +5,12 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token, Waker};
+use ros2_client::dds::rustdds::mio1::{Events, Poll, Token, Waker};
 use ros2_client::{Node, Publisher, Subscription};
 use transport::Mailbox;
 
 use super::{BridgeConfig, IoReport, STATE_QUEUE, Shared, Timed};
-use crate::graph::{self, Graph, GraphError, io_error, ros_now_ns};
+use crate::graph::{self, Graph, GraphError, io_error, register, ros_now_ns};
 use crate::msg::{
     Bool, Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion, Time, Twist,
     TwistStamped, Vector3, WrenchStamped,
@@ -78,19 +78,10 @@ pub(super) fn spawn(
     let theta = graph::advertise::<Float64MultiArray>(&mut node, &t.theta, config.settings_qos)?;
     let contact = graph::advertise::<Bool>(&mut node, &t.in_contact, config.settings_qos)?;
     let poll = Poll::new().map_err(io_error("poll"))?;
-    let registry = poll.registry();
-    registry
-        .register(&mut pose, POSE, Interest::READABLE)
-        .map_err(io_error("pose subscription"))?;
-    if let Some(s) = twist.as_mut() {
-        registry
-            .register(s, TWIST, Interest::READABLE)
-            .map_err(io_error("twist subscription"))?;
-    }
-    registry
-        .register(&mut wrench, WRENCH, Interest::READABLE)
-        .map_err(io_error("wrench subscription"))?;
-    let waker = Waker::new(registry, WAKE).map_err(io_error("waker"))?;
+    register(&poll, Some(&mut pose), POSE, "pose subscription")?;
+    register(&poll, twist.as_mut(), TWIST, "twist subscription")?;
+    register(&poll, Some(&mut wrench), WRENCH, "wrench subscription")?;
+    let waker = Waker::new(poll.registry(), WAKE).map_err(io_error("waker"))?;
     let shared = Arc::new(Shared {
         states: Mailbox::new(STATE_QUEUE),
         targets: Mailbox::latest(),

@@ -7,12 +7,12 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use mmt::vec3::{self, Vec3};
-use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token, Waker};
+use ros2_client::dds::rustdds::mio1::{Events, Poll, Token, Waker};
 use ros2_client::{Node, Publisher, Subscription};
 use transport::Mailbox;
 
 use super::{CommandLen, HapticConfig, HapticError, IoReport, Shared, command_message};
-use crate::graph::{self, Graph, GraphError, io_error, ros_now_ns};
+use crate::graph::{self, Graph, io_error, register, ros_now_ns};
 use crate::haptic::gate::{DeviceSample, PoseGate};
 use crate::msg::{Bool, Float64MultiArray, PoseStamped, TwistStamped};
 
@@ -51,21 +51,6 @@ struct Io {
     holding_force: bool,
     /// The pose is stale while a force is commanded (one log per episode).
     stale: bool,
-}
-
-fn register<S: ros2_client::dds::rustdds::mio1::event::Source>(
-    poll: &Poll,
-    source: Option<&mut S>,
-    token: Token,
-    what: &str,
-) -> Result<(), GraphError> {
-    match source {
-        Some(s) => poll
-            .registry()
-            .register(s, token, Interest::READABLE)
-            .map_err(io_error(what)),
-        None => Ok(()),
-    }
 }
 
 /// Creates the endpoints and starts the thread.
