@@ -59,7 +59,7 @@
 //!   zero is published, counted and logged — the controller would hold the force forever.
 //! - Forces switched off, and the I/O thread stopping (with a last zero, then 100 ms for the
 //!   reliable writer to deliver it): zero.
-//! - Poses are checked by [`gate::PoseGate`] (order, finiteness, range, speed), every refusal
+//! - Poses are checked by [`gate::PoseGate`] (stamp, finiteness, range, speed), every refusal
 //!   counted in [`HapticReport`].
 
 pub mod gate;
@@ -79,7 +79,7 @@ use crate::graph::{Graph, GraphError, Qos, TopicName};
 use crate::msg::{Float64MultiArray, MultiArrayLayout};
 use crate::topics::{split_rule, unknown_key};
 
-pub use gate::{DeviceSample, GateConfig, GateCounts, PoseGate};
+pub use gate::{DeviceSample, GateConfig, GateCounts, PoseGate, Receipt};
 
 /// The device's topics.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -485,10 +485,12 @@ fn seen(io: &IoReport) -> String {
         return "no message arrived".to_owned();
     }
     format!(
-        "{} poses arrived, none valid (malformed stamps {}, out of order {}, duplicates {}, \
-         non-finite {}, out of range {}, impossible jumps {}); {} messages did not decode",
+        "{} poses arrived, none valid (malformed stamps {}, stamped ahead of this host's clock \
+         {}, out of order {}, duplicates {}, non-finite {}, out of range {}, impossible jumps \
+         {}); {} messages did not decode",
         g.poses,
         g.malformed_stamps,
+        g.from_future,
         g.out_of_order,
         g.duplicates,
         g.non_finite,

@@ -1,13 +1,20 @@
 //! Device poses (and twists) → checked samples, one per accepted pose, timed by its header
-//! stamp. Pure (no DDS, no clock): the I/O thread feeds it messages with their receipt times.
+//! stamp. Pure (no DDS, no clock): the I/O thread feeds it messages with their [`Receipt`]s.
 //!
 //! # Refusals (each counted in [`GateCounts`])
 //! - a stamp with `nanosec ≥ 1e9` (malformed);
-//! - a stamp not newer than the newest pose's (out of order, or a duplicate);
+//! - a stamp more than [`GateConfig::max_ahead_ns`] ahead of the receiver's ROS clock (from the
+//!   future: another clock's);
+//! - a stamp not newer than the newest *accepted* pose's (out of order, or a duplicate);
 //! - a non-finite value anywhere in the pose;
 //! - a position farther than [`GateConfig::max_radius_m`] from the frame's origin;
 //! - an impossible jump: faster than [`GateConfig::max_speed_m_per_s`] from the last accepted
 //!   pose.
+//!
+//! A refused pose changes nothing but the counts: only an accepted pose's stamp becomes the one
+//! later poses must be newer than. (A refused pose that moved it would make every good pose
+//! after it "out of order" until the driver's clock caught up: one garbage message from a
+//! second publisher, a bag replay or a clock step would stop the poses for good.)
 //!
 //! # Velocity
 //! With a twist topic, the linear velocity of the accepted twist nearest the pose's stamp
@@ -36,6 +43,13 @@ pub struct GateConfig {
     pub velocity_window_ns: i64,
     /// How far a twist's stamp may be from the pose's \[ns\]. Default 2 ms: two ticks at 1 kHz.
     pub twist_tolerance_ns: i64,
+    /// A pose or twist stamped more than this ahead of the receiver's ROS clock at receipt is
+    /// refused \[ns\]. Default 1 s: hosts kept by NTP agree within milliseconds and a pose is in
+    /// transit for less, so a stamp a second ahead is another clock's (a stepped or unsynchronised
+    /// driver host, a replay); accepted, it would refuse every correct pose as out of order until
+    /// the driver's clock caught up. (A driver host whose clock runs more than 1 s ahead of
+    /// this one has all its poses refused, counted as `from_future`: synchronise the clocks.)
+    pub max_ahead_ns: i64,
 }
 
 impl Default for GateConfig {
@@ -45,8 +59,18 @@ impl Default for GateConfig {
             max_radius_m: 1.0,
             velocity_window_ns: 10_000_000,
             twist_tolerance_ns: 2_000_000,
+            max_ahead_ns: 1_000_000_000,
         }
     }
+}
+
+/// When a message arrived, on both of the receiver's clocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Receipt {
+    /// The monotonic clock \[ns\]: what staleness is measured on.
+    pub monotonic_ns: i64,
+    /// The ROS clock (system time) \[ns\]: what header stamps are compared with.
+    pub ros_ns: i64,
 }
 
 /// One accepted device sample.
@@ -71,9 +95,11 @@ pub struct GateCounts {
     pub accepted: u64,
     /// Poses or twists whose stamp had `nanosec ≥ 1e9`.
     pub malformed_stamps: u64,
-    /// Poses older than the newest pose.
+    /// Poses stamped more than [`GateConfig::max_ahead_ns`] ahead of the receiver's clock.
+    pub from_future: u64,
+    /// Poses older than the newest accepted pose.
     pub out_of_order: u64,
-    /// Poses with the newest pose's stamp.
+    /// Poses with the newest accepted pose's stamp.
     pub duplicates: u64,
     /// Poses with a non-finite value.
     pub non_finite: u64,
@@ -83,7 +109,7 @@ pub struct GateCounts {
     pub impossible_jumps: u64,
     /// Twists received.
     pub twists: u64,
-    /// Twists refused (malformed or not newer stamp, non-finite).
+    /// Twists refused (malformed, future or not newer stamp, non-finite).
     pub twists_refused: u64,
     /// Accepted poses with no twist within the tolerance (velocity differentiated instead).
     pub without_twist: u64,
@@ -124,10 +150,10 @@ impl PoseGate {
         }
     }
 
-    /// A pose arrived at `received_ns`: the sample it makes, or `None` (refused, counted).
-    pub fn on_pose(&mut self, msg: &PoseStamped, received_ns: i64) -> Option<DeviceSample> {
+    /// A pose arrived: the sample it makes, or `None` (refused, counted).
+    pub fn on_pose(&mut self, msg: &PoseStamped, at: Receipt) -> Option<DeviceSample> {
         self.counts.poses += 1;
-        let stamp = self.stamp(msg)?;
+        let stamp = self.stamp(msg, at.ros_ns)?;
         let position = msg.pose.position.to_array();
         let o = msg.pose.orientation;
         let c = &mut self.counts;
@@ -144,20 +170,21 @@ impl PoseGate {
             return None;
         }
         let velocity = self.velocity(stamp, position);
+        self.newest_pose = Some(stamp);
         self.history[self.next] = (stamp, position);
         self.next = (self.next + 1) % HISTORY;
         self.len = (self.len + 1).min(HISTORY);
         self.counts.accepted += 1;
         Some(DeviceSample {
             stamp_ns: stamp,
-            received_ns,
+            received_ns: at.monotonic_ns,
             position_m: position,
             velocity_m_per_s: velocity,
         })
     }
 
-    /// A twist arrived.
-    pub fn on_twist(&mut self, msg: &TwistStamped) {
+    /// A twist arrived when the receiver's ROS clock read `ros_now_ns`.
+    pub fn on_twist(&mut self, msg: &TwistStamped, ros_now_ns: i64) {
         self.counts.twists += 1;
         let Some(stamp) = msg.header.stamp.to_nanos() else {
             self.counts.malformed_stamps += 1;
@@ -165,7 +192,10 @@ impl PoseGate {
             return;
         };
         let v = msg.twist.linear.to_array();
-        if arrival(self.newest_twist, stamp) != Arrival::Newer || !vec3::is_finite(v) {
+        if self.ahead(stamp, ros_now_ns)
+            || arrival(self.newest_twist, stamp) != Arrival::Newer
+            || !vec3::is_finite(v)
+        {
             self.counts.twists_refused += 1;
             return;
         }
@@ -178,22 +208,28 @@ impl PoseGate {
         self.counts
     }
 
-    /// The pose's stamp if it is well-formed and newer than the newest pose's (which it then
-    /// becomes, whatever the checks after it say).
-    fn stamp(&mut self, msg: &PoseStamped) -> Option<i64> {
+    /// The pose's stamp if it is well-formed, not from the future and newer than the newest
+    /// accepted pose's. (It becomes the newest only once the pose is accepted.)
+    fn stamp(&mut self, msg: &PoseStamped, ros_now_ns: i64) -> Option<i64> {
         let Some(stamp) = msg.header.stamp.to_nanos() else {
             self.counts.malformed_stamps += 1;
             return None;
         };
+        if self.ahead(stamp, ros_now_ns) {
+            self.counts.from_future += 1;
+            return None;
+        }
         match arrival(self.newest_pose, stamp) {
             Arrival::Duplicate => self.counts.duplicates += 1,
             Arrival::OutOfOrder => self.counts.out_of_order += 1,
-            Arrival::Newer => {
-                self.newest_pose = Some(stamp);
-                return Some(stamp);
-            }
+            Arrival::Newer => return Some(stamp),
         }
         None
+    }
+
+    /// `stamp` is more than the allowed margin ahead of `ros_now_ns`.
+    fn ahead(&self, stamp: i64, ros_now_ns: i64) -> bool {
+        stamp.saturating_sub(ros_now_ns) > self.config.max_ahead_ns
     }
 
     /// The `k`-th newest accepted pose (0: the newest).

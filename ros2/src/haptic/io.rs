@@ -13,7 +13,7 @@ use transport::Mailbox;
 
 use super::{CommandLen, HapticConfig, HapticError, IoReport, Shared, command_message};
 use crate::graph::{self, Graph, io_error, register, ros_now_ns};
-use crate::haptic::gate::{DeviceSample, PoseGate};
+use crate::haptic::gate::{DeviceSample, PoseGate, Receipt};
 use crate::msg::{Bool, Float64MultiArray, PoseStamped, TwistStamped};
 
 const POSE: Token = Token(1);
@@ -160,7 +160,7 @@ impl Io {
             }
             let undecodable = &mut self.report.undecodable;
             if let Some(msg) = graph::take(self.twist.as_ref(), &mut any, undecodable) {
-                self.gate.on_twist(&msg);
+                self.gate.on_twist(&msg, ros_now_ns());
             }
             let undecodable = &mut self.report.undecodable;
             if let Some(msg) = graph::take(self.button.as_ref(), &mut any, undecodable) {
@@ -175,7 +175,11 @@ impl Io {
 
     fn on_pose(&mut self, msg: &PoseStamped) {
         let received = rt::monotonic_ns();
-        let Some(sample) = self.gate.on_pose(msg, received) else {
+        let at = Receipt {
+            monotonic_ns: received,
+            ros_ns: ros_now_ns(),
+        };
+        let Some(sample) = self.gate.on_pose(msg, at) else {
             return;
         };
         if self.report.frame_id.is_empty() {
@@ -183,16 +187,15 @@ impl Io {
             tracing::info!(topic = %self.pose_topic, frame = %msg.header.frame_id,
                 "first valid device pose");
         }
-        self.record(&sample);
+        self.record(&sample, at.ros_ns);
         self.last_pose_ns = Some(received);
         self.shared.samples.push(sample);
         self.shared.posed.store(true, Relaxed);
     }
 
-    fn record(&mut self, s: &DeviceSample) {
-        self.shared
-            .latency
-            .record((ros_now_ns() - s.stamp_ns).max(0));
+    /// Notes an accepted sample, received when the ROS clock read `ros_ns`.
+    fn record(&mut self, s: &DeviceSample, ros_ns: i64) {
+        self.shared.latency.record((ros_ns - s.stamp_ns).max(0));
         self.report.stamp_span_ns = Some(match self.report.stamp_span_ns {
             Some((first, last)) => {
                 let gap = (s.stamp_ns - last) as f64 * 1e-6;

@@ -6,6 +6,31 @@ use crate::fd_double::fd_pose;
 use crate::msg::{Header, Time, Twist, TwistStamped, Vector3};
 
 const MS: i64 = 1_000_000;
+/// The receiver's ROS clock in the tests that are not about it: 2033, after every stamp here.
+const LATER: i64 = 2_000_000_000 * 1_000 * MS;
+
+/// A receipt at `monotonic_ns`, the ROS clock at [`LATER`].
+fn rx(monotonic_ns: i64) -> Receipt {
+    Receipt {
+        monotonic_ns,
+        ros_ns: LATER,
+    }
+}
+
+/// A stamp of 2023 \[ns\].
+const T0: i64 = 1_700_000_000 * 1_000 * MS;
+
+/// A receipt at `k` ms after [`T0`] on the ROS clock (`k` ns on the monotonic one).
+fn clock(k: i64) -> Receipt {
+    Receipt {
+        monotonic_ns: k,
+        ros_ns: T0 + k * MS,
+    }
+}
+
+fn gate(twist: bool) -> PoseGate {
+    PoseGate::new(GateConfig::default(), twist)
+}
 
 #[test]
 fn the_defaults_are_forcedimension_ros2s_and_remap_one_by_one() {
@@ -97,38 +122,47 @@ fn twist(stamp: i64, v: [f64; 3]) -> TwistStamped {
 
 #[test]
 fn the_gate_refuses_and_counts_each_kind_of_garbage() {
-    let mut g = PoseGate::new(GateConfig::default(), false);
-    let t0 = 1_700_000_000 * 1_000 * MS;
-    let at = |k: i64| t0 + k * MS;
-    assert!(g.on_pose(&fd_pose(at(0), [0.01, 0.0, 0.0]), 1).is_some());
+    let mut g = gate(false);
+    let at = |k: i64| T0 + k * MS;
+    assert!(
+        g.on_pose(&fd_pose(at(0), [0.01, 0.0, 0.0]), rx(1))
+            .is_some()
+    );
     let mut nan = fd_pose(at(1), [f64::NAN, 0.0, 0.0]);
-    assert!(g.on_pose(&nan, 2).is_none());
+    assert!(g.on_pose(&nan, rx(2)).is_none());
     nan.pose.position.x = 0.01;
     nan.pose.orientation.w = f64::INFINITY;
-    assert!(g.on_pose(&fd_pose(at(2), [0.01, 0.0, 0.0]), 3).is_some());
     assert!(
-        g.on_pose(&fd_pose(at(3), [0.2, 0.0, 0.0]), 4).is_none(),
+        g.on_pose(&fd_pose(at(2), [0.01, 0.0, 0.0]), rx(3))
+            .is_some()
+    );
+    assert!(
+        g.on_pose(&fd_pose(at(3), [0.2, 0.0, 0.0]), rx(4)).is_none(),
         "jump"
     );
     assert!(
-        g.on_pose(&fd_pose(at(1), [0.01, 0.0, 0.0]), 5).is_none(),
+        g.on_pose(&fd_pose(at(1), [0.01, 0.0, 0.0]), rx(5))
+            .is_none(),
         "old"
     );
     assert!(
-        g.on_pose(&fd_pose(at(3), [0.01, 0.0, 0.0]), 6).is_none(),
+        g.on_pose(&fd_pose(at(2), [0.01, 0.0, 0.0]), rx(6))
+            .is_none(),
         "dup"
     );
     let mut malformed = fd_pose(at(4), [0.01, 0.0, 0.0]);
     malformed.header.stamp.nanosec = 1_500_000_000;
-    assert!(g.on_pose(&malformed, 7).is_none());
+    assert!(g.on_pose(&malformed, rx(7)).is_none());
     assert!(
-        g.on_pose(&fd_pose(at(5), [3.0, 0.0, 0.0]), 8).is_none(),
+        g.on_pose(&fd_pose(at(5), [3.0, 0.0, 0.0]), rx(8)).is_none(),
         "far"
     );
     nan.header.stamp = Time::from_nanos(at(6));
-    assert!(g.on_pose(&nan, 9).is_none(), "a non-finite orientation");
+    assert!(g.on_pose(&nan, rx(9)).is_none(), "a non-finite orientation");
     // The next good pose is checked against the last accepted one (at 2 ms), not the refused.
-    let s = g.on_pose(&fd_pose(at(7), [0.0105, 0.0, 0.0]), 10).unwrap();
+    let s = g
+        .on_pose(&fd_pose(at(7), [0.0105, 0.0, 0.0]), rx(10))
+        .unwrap();
     assert_eq!((s.stamp_ns, s.received_ns), (at(7), 10));
     assert_eq!(
         g.counts(),
@@ -148,38 +182,116 @@ fn the_gate_refuses_and_counts_each_kind_of_garbage() {
 
 #[test]
 fn without_a_twist_the_velocity_is_differentiated_over_the_window() {
-    let mut g = PoseGate::new(GateConfig::default(), false);
+    let mut g = gate(false);
     // 5 cm/s along x with ±5 µm of alternating noise, 1 ms apart.
     let mut last = None;
     for k in 0..40i64 {
         let noise = if k % 2 == 0 { 5e-6 } else { -5e-6 };
         let x = 0.05 * k as f64 * 1e-3 + noise;
-        last = g.on_pose(&fd_pose(k * MS + MS, [x, 0.0, 0.0]), k);
+        last = g.on_pose(&fd_pose(k * MS + MS, [x, 0.0, 0.0]), rx(k));
     }
     let v = last.unwrap().velocity_m_per_s;
     // Over 10 ms the noise is 1 mm/s at most; over 1 ms it would be 10 mm/s.
     assert!((v[0] - 0.05).abs() <= 0.0011, "{v:?}");
     assert_eq!(v[1], 0.0);
     // The first sample has nothing to differentiate: zero.
-    let mut g = PoseGate::new(GateConfig::default(), false);
-    let first = g.on_pose(&fd_pose(MS, [0.01, 0.0, 0.0]), 0).unwrap();
+    let mut g = gate(false);
+    let first = g.on_pose(&fd_pose(MS, [0.01, 0.0, 0.0]), rx(0)).unwrap();
     assert_eq!(first.velocity_m_per_s, [0.0; 3]);
     // A slow driver (20 ms apart): the previous pose.
-    let s = g.on_pose(&fd_pose(21 * MS, [0.011, 0.0, 0.0]), 0).unwrap();
+    let s = g
+        .on_pose(&fd_pose(21 * MS, [0.011, 0.0, 0.0]), rx(0))
+        .unwrap();
     assert!((s.velocity_m_per_s[0] - 0.05).abs() < 1e-12);
 }
 
 #[test]
 fn a_twist_near_the_pose_gives_the_velocity_else_the_pose_is_differentiated() {
-    let mut g = PoseGate::new(GateConfig::default(), true);
-    g.on_twist(&twist(MS, [0.3, 0.0, 0.0]));
-    g.on_twist(&twist(2 * MS, [f64::NAN, 0.0, 0.0]));
-    g.on_twist(&twist(MS, [0.4, 0.0, 0.0]));
-    let s = g.on_pose(&fd_pose(2 * MS, [0.01, 0.0, 0.0]), 0).unwrap();
+    let mut g = gate(true);
+    g.on_twist(&twist(MS, [0.3, 0.0, 0.0]), LATER);
+    g.on_twist(&twist(2 * MS, [f64::NAN, 0.0, 0.0]), LATER);
+    g.on_twist(&twist(MS, [0.4, 0.0, 0.0]), LATER);
+    let s = g
+        .on_pose(&fd_pose(2 * MS, [0.01, 0.0, 0.0]), rx(0))
+        .unwrap();
     assert_eq!(s.velocity_m_per_s, [0.3, 0.0, 0.0]);
     // No twist within 2 ms of 10 ms: differentiated (0.01 → 0.0108 over 8 ms).
-    let s = g.on_pose(&fd_pose(10 * MS, [0.0108, 0.0, 0.0]), 0).unwrap();
+    let s = g
+        .on_pose(&fd_pose(10 * MS, [0.0108, 0.0, 0.0]), rx(0))
+        .unwrap();
     assert!((s.velocity_m_per_s[0] - 0.1).abs() < 1e-9, "{s:?}");
     let c = g.counts();
     assert_eq!((c.twists, c.twists_refused, c.without_twist), (3, 2, 1));
+}
+
+/// Regression: the gate made a pose's stamp the newest before checking its values, so one
+/// refused pose stamped ahead of the driver (a second publisher, a replay, a clock step) made
+/// every good pose after it "out of order": the pose went stale and the device faulted for the
+/// rest of the run.
+#[test]
+fn a_refused_pose_stamped_ahead_does_not_refuse_the_good_poses_after_it() {
+    let mut g = gate(false);
+    assert!(
+        g.on_pose(&fd_pose(T0, [0.01, 0.0, 0.0]), clock(0))
+            .is_some()
+    );
+    // Ahead of the driver (within the 1 s allowed), each refused for its value.
+    let ahead = T0 + 500 * MS;
+    assert!(
+        g.on_pose(&fd_pose(ahead, [f64::NAN, 0.0, 0.0]), clock(1))
+            .is_none()
+    );
+    assert!(
+        g.on_pose(&fd_pose(ahead + MS, [3.0, 0.0, 0.0]), clock(1))
+            .is_none()
+    );
+    assert!(
+        g.on_pose(&fd_pose(T0 + 10 * MS, [0.2, 0.0, 0.0]), clock(1))
+            .is_none()
+    );
+    for k in 1..=3 {
+        let s = g.on_pose(&fd_pose(T0 + k * MS, [0.01, 0.0, 0.0]), clock(k));
+        assert_eq!(s.map(|s| s.stamp_ns), Some(T0 + k * MS), "{:?}", g.counts());
+    }
+    let c = g.counts();
+    assert_eq!(
+        (c.non_finite, c.out_of_range, c.impossible_jumps),
+        (1, 1, 1)
+    );
+    assert_eq!((c.out_of_order, c.accepted), (0, 4));
+}
+
+/// Regression (the same bug): a pose stamped far ahead of the receiver's clock, valid in every
+/// other way, was accepted and refused every correct pose until the driver's clock caught up.
+#[test]
+fn a_pose_stamped_over_a_second_ahead_of_the_clock_is_refused_and_counted() {
+    let mut g = gate(true);
+    assert!(
+        g.on_pose(&fd_pose(T0, [0.01, 0.0, 0.0]), clock(0))
+            .is_some()
+    );
+    let hour = 3_600_000 * MS;
+    assert!(
+        g.on_pose(&fd_pose(T0 + hour, [0.01, 0.0, 0.0]), clock(1))
+            .is_none()
+    );
+    g.on_twist(&twist(T0 + hour, [0.3, 0.0, 0.0]), T0 + MS);
+    g.on_twist(&twist(T0 + 2 * MS, [0.2, 0.0, 0.0]), T0 + 2 * MS);
+    let s = g.on_pose(&fd_pose(T0 + 2 * MS, [0.01, 0.0, 0.0]), clock(2));
+    assert_eq!(s.map(|s| s.velocity_m_per_s), Some([0.2, 0.0, 0.0]));
+    let c = g.counts();
+    assert_eq!((c.from_future, c.twists_refused), (1, 1), "{c:?}");
+    assert_eq!((c.out_of_order, c.accepted), (0, 2), "{c:?}");
+    // Up to the bound is accepted (a clock ahead by less than a second).
+    let mut g = gate(false);
+    let edge = T0 + GateConfig::default().max_ahead_ns;
+    assert!(
+        g.on_pose(&fd_pose(edge, [0.01, 0.0, 0.0]), clock(0))
+            .is_some()
+    );
+    assert!(
+        g.on_pose(&fd_pose(edge + 2, [0.01, 0.0, 0.0]), clock(0))
+            .is_none()
+    );
+    assert_eq!(g.counts().from_future, 1);
 }

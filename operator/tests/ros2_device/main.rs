@@ -7,6 +7,8 @@
 
 #![allow(clippy::unwrap_used)]
 
+mod regressions;
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 use std::time::{Duration, Instant};

@@ -1,0 +1,55 @@
+//! Regressions of `--device ros2`, each named after the bug it pins: a pose stamped ahead that
+//! stopped every pose after it.
+
+use super::*;
+use ros2::msg::Time;
+
+/// [`moving`], with two poses stamped ahead of the driver once `go` is seen: a non-finite one
+/// half a second ahead, then a valid one an hour ahead.
+fn moving_with_poses_ahead(go: &Arc<AtomicBool>) -> Script {
+    let (mut script, go, mut sent) = (moving(), Arc::clone(go), 0);
+    Box::new(move |k, now| {
+        let mut step = script(k, now);
+        if go.load(Relaxed) && sent < 2 {
+            let pose = step.pose.as_mut().unwrap();
+            let stamp = pose.header.stamp.to_nanos().unwrap();
+            let (ahead, x) = [(500 * MS, f64::NAN), (3_600_000 * MS, 0.01)][sent];
+            pose.header.stamp = Time::from_nanos(stamp + ahead);
+            pose.pose.position.x = x;
+            sent += 1;
+        }
+        step
+    })
+}
+
+/// Regression: one pose stamped ahead of the driver, refused or not, made every later pose
+/// "out of order": the poses stopped and the device faulted for the rest of the run.
+#[test]
+fn one_pose_stamped_ahead_does_not_stop_the_poses_after_it() {
+    let (graph, topics) = isolated();
+    let go = Arc::new(AtomicBool::new(false));
+    let d = double(&graph, &topics, moving_with_poses_ahead(&go));
+    let mut config = config(&topics, DEADLINE);
+    // Reliable and deep: both poses ahead arrive.
+    config.state_qos = Qos::parse("reliable,keep-last-100", Qos::STREAM).unwrap();
+    let mut device = open(&graph, config);
+    go.store(true, Relaxed);
+    let start = Instant::now();
+    let mut refused_at = None;
+    // The poses keep coming after both were refused: 500 more accepted.
+    drive(device.as_mut(), start, [0.0; 3], |dev| {
+        let g = report(dev).io.gate;
+        if refused_at.is_none() && g.non_finite + g.from_future == 2 {
+            refused_at = Some(g.accepted);
+        }
+        refused_at.is_some_and(|at| g.accepted > at + 500)
+    });
+    let g = report(device.as_ref()).io.gate;
+    drop(d);
+    assert_eq!(
+        (g.non_finite, g.from_future, g.out_of_order),
+        (1, 1, 0),
+        "{g:?}"
+    );
+    assert_eq!(device.operating_state(), OperatingState::Disabled);
+}
