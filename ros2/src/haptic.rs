@@ -39,7 +39,8 @@
 //! # Conventions (the one place they are stated)
 //!
 //! - **Frame and units**: positions \[m\], velocities \[m/s\] and forces \[N\] in the pose's
-//!   frame (`fd_base`); the orientation is not used (the model is translational).
+//!   frame, which must be [`HapticConfig::pose_frame`] (`fd_base`: the frame the driver writes
+//!   forces in); the orientation is not used (the model is translational).
 //! - **Command layout** ([`command_message`]): `layout` empty (no dimensions, `data_offset` 0),
 //!   `data = [fx, fy, fz]`, then zeros up to [`CommandLen`] — the controller's joints in order:
 //!   `fd_x, fd_y, fd_z` (3, the default), `+ fd_clutch` (4, gripper force 0), `+ fd_roll,
@@ -59,8 +60,8 @@
 //!   zero is published, counted and logged — the controller would hold the force forever.
 //! - Forces switched off, and the I/O thread stopping (with a last zero, then 100 ms for the
 //!   reliable writer to deliver it): zero.
-//! - Poses are checked by [`gate::PoseGate`] (stamp, finiteness, range, speed), every refusal
-//!   counted in [`HapticReport`].
+//! - Poses are checked by [`gate::PoseGate`] (frame, stamp, finiteness, range, speed), every
+//!   refusal counted in [`HapticReport`].
 
 pub mod gate;
 mod io;
@@ -79,7 +80,7 @@ use crate::graph::{Graph, GraphError, Qos, TopicName};
 use crate::msg::{Float64MultiArray, MultiArrayLayout};
 use crate::topics::{split_rule, unknown_key};
 
-pub use gate::{DeviceSample, GateConfig, GateCounts, PoseGate, Receipt};
+pub use gate::{DeviceSample, ExpectedFrame, GateConfig, GateCounts, PoseGate, Receipt};
 
 /// The device's topics.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -132,13 +133,13 @@ impl HapticTopics {
         Ok(())
     }
 
-    /// Every topic, `key = name`, for the start message.
-    pub fn describe(&self, command_len: CommandLen) -> String {
+    /// Every topic, `key = name`, and the poses' frame, for the start message.
+    pub fn describe(&self, command_len: CommandLen, frame: &ExpectedFrame) -> String {
         let or = |t: &Option<TopicName>, none: &str| {
             t.as_ref().map_or(none.to_owned(), ToString::to_string)
         };
         format!(
-            "pose = {}, twist = {}, button = {}, command = {}",
+            "pose = {} (frame {frame}), twist = {}, button = {}, command = {}",
             self.pose,
             or(
                 &self.twist,
@@ -216,6 +217,8 @@ pub struct HapticConfig {
     pub command_len: CommandLen,
     /// How poses are checked.
     pub gate: GateConfig,
+    /// The frame poses must be in (`fd_base` by default; see [`ExpectedFrame`]).
+    pub pose_frame: ExpectedFrame,
     /// With no valid pose for this long, zero force is published. Default 50 ms: the
     /// telerobot's stale-state rule (`node::guard`).
     pub stale_after: Duration,
@@ -236,6 +239,7 @@ impl Default for HapticConfig {
             },
             command_len: CommandLen::FORCES,
             gate: GateConfig::default(),
+            pose_frame: ExpectedFrame::default(),
             stale_after: Duration::from_millis(50),
             command_watchdog: Duration::from_millis(20),
         }
@@ -255,6 +259,12 @@ pub enum HapticError {
          fd_roll, fd_pitch, fd_yaw; 7 with both)"
     )]
     CommandLen(usize),
+    /// A pose frame that cannot be a `frame_id`.
+    #[error(
+        "--ros-pose-frame {0:?}: expected the poses' frame_id (forcedimension_ros2's: fd_base), \
+         or `any` to accept every frame"
+    )]
+    PoseFrame(String),
     /// No valid pose within the wait.
     #[error(
         "no valid pose on {topic} (geometry_msgs/msg/PoseStamped, ROS domain {domain}) within \
@@ -302,6 +312,8 @@ pub struct IoReport {
     pub gate: GateCounts,
     /// The pose's `frame_id` (the first accepted pose's).
     pub frame_id: String,
+    /// The first frame a pose was refused for (`wrong_frame`), if any.
+    pub other_frame: Option<String>,
     /// The first and last accepted stamps \[ns, ROS time\].
     pub stamp_span_ns: Option<(i64, i64)>,
     /// Longest gap between consecutive accepted stamps \[ms\].
@@ -373,7 +385,9 @@ impl RosHaptic {
             io: Some(handle),
             domain_id: graph.config().domain_id,
             pose_topic: config.topics.pose.to_string(),
-            topics: config.topics.describe(config.command_len),
+            topics: config
+                .topics
+                .describe(config.command_len, &config.pose_frame),
             twist: config.topics.twist.is_some(),
             writes_force: config.topics.command.is_some(),
         })
@@ -484,11 +498,16 @@ fn seen(io: &IoReport) -> String {
     if g.poses == 0 && io.undecodable == 0 {
         return "no message arrived".to_owned();
     }
+    let frame = match &io.other_frame {
+        Some(f) => format!(" (the first: {f:?}; --ros-pose-frame)"),
+        None => String::new(),
+    };
     format!(
-        "{} poses arrived, none valid (malformed stamps {}, stamped ahead of this host's clock \
-         {}, out of order {}, duplicates {}, non-finite {}, out of range {}, impossible jumps \
-         {}); {} messages did not decode",
+        "{} poses arrived, none valid (in another frame {}{frame}, malformed stamps {}, stamped \
+         ahead of this host's clock {}, out of order {}, duplicates {}, non-finite {}, \
+         out of range {}, impossible jumps {}); {} messages did not decode",
         g.poses,
+        g.wrong_frame,
         g.malformed_stamps,
         g.from_future,
         g.out_of_order,

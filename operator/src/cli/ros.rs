@@ -4,7 +4,7 @@
 
 use clap::Args;
 use ros2::GraphConfig;
-use ros2::haptic::{CommandLen, HapticConfig, HapticError};
+use ros2::haptic::{CommandLen, ExpectedFrame, HapticConfig, HapticError};
 
 use crate::device::DeviceSpec;
 use crate::device::ros::RosOptions;
@@ -31,6 +31,11 @@ pub struct RosArgs {
     /// controller, [fx, fy, fz] then zeros (default 3: forcedimension_ros2's fd_controller).
     #[arg(long, value_name = "N")]
     pub ros_command_len: Option<usize>,
+    /// The frame_id the device's poses must have (--device ros2; default fd_base,
+    /// forcedimension_ros2's, the frame forces are written in): a pose in another frame is
+    /// refused and counted. `any` accepts every frame, unchecked.
+    #[arg(long, value_name = "NAME")]
+    pub ros_pose_frame: Option<String>,
 }
 
 /// A ROS 2 device option that cannot be used.
@@ -42,7 +47,7 @@ pub enum RosArgsError {
         /// The flag.
         flag: &'static str,
     },
-    /// A domain, topic, QoS or command length.
+    /// A domain, topic, QoS, command length or pose frame.
     #[error(transparent)]
     Device(#[from] HapticError),
 }
@@ -63,6 +68,7 @@ impl RosArgs {
                 ("--topic", !self.topics.is_empty()),
                 ("--qos", !self.qos.is_empty()),
                 ("--ros-command-len", self.ros_command_len.is_some()),
+                ("--ros-pose-frame", self.ros_pose_frame.is_some()),
             ];
             if let Some((flag, _)) = used.iter().find(|(_, used)| *used) {
                 return Err(RosArgsError::NotRos2 { flag });
@@ -83,6 +89,9 @@ impl RosArgs {
         )?;
         if let Some(n) = self.ros_command_len {
             config.command_len = CommandLen::new(n)?;
+        }
+        if let Some(frame) = &self.ros_pose_frame {
+            config.pose_frame = ExpectedFrame::parse(frame)?;
         }
         Ok(RosOptions {
             graph: Some(graph),

@@ -348,6 +348,8 @@ fn ros2_device_flags_make_the_device_config() {
         "command=keep-last-2",
         "--ros-command-len",
         "7",
+        "--ros-pose-frame",
+        "omega_base",
     ]);
     let o = args.ros.options(&args.device).unwrap();
     assert_eq!(o.graph.unwrap().domain_id, 7);
@@ -362,6 +364,13 @@ fn ros2_device_flags_make_the_device_config() {
     assert_eq!(d.state_qos.to_string(), "reliable,volatile,keep-last-5");
     assert_eq!(d.command_qos.to_string(), "reliable,volatile,keep-last-2");
     assert_eq!(d.command_len.get(), 7);
+    assert_eq!(
+        d.pose_frame,
+        ros2::haptic::ExpectedFrame::Named("omega_base".into())
+    );
+    let args = ros_run_args(&["--ros-pose-frame", "any"]);
+    let d = args.ros.options(&args.device).unwrap().device;
+    assert_eq!(d.pose_frame, ros2::haptic::ExpectedFrame::Any);
     // No flags: forcedimension_ros2's defaults.
     let args = ros_run_args(&[]);
     let d = args.ros.options(&args.device).unwrap().device;
@@ -392,6 +401,10 @@ fn bad_ros2_device_flags_are_refused_with_one_clear_message() {
             "--ros-command-len 8: expected 3 to 7",
         ),
         (
+            &["--ros-pose-frame", "fd base"],
+            "--ros-pose-frame \"fd base\": expected the poses' frame_id",
+        ),
+        (
             &["--ros-domain", "233"],
             "--ros-domain = \"233\": expected a ROS domain id, 0 to 232",
         ),
@@ -408,6 +421,7 @@ fn bad_ros2_device_flags_are_refused_with_one_clear_message() {
         (&["--ros-domain", "3"], "--ros-domain"),
         (&["--qos", "state=reliable"], "--qos"),
         (&["--ros-command-len", "3"], "--ros-command-len"),
+        (&["--ros-pose-frame", "any"], "--ros-pose-frame"),
     ] {
         let e = run(&run_args(extra), Shutdown::new(), &mut Vec::new())
             .unwrap_err()

@@ -299,7 +299,10 @@ fn ros2_device_rows(rows: &mut Rows, d: &ros2::haptic::HapticReport) {
     );
     rows.row("  stamp → receipt p50 / p99 / max", us(&d.latency));
     rows.row("  velocity from", d.velocity_from.to_owned());
-    rows.row("  refused: from the future", g.from_future.to_string());
+    rows.row(
+        "  refused: other frame / from the future",
+        format!("{} / {}", g.wrong_frame, g.from_future),
+    );
     rows.row(
         "  refused: out of order / duplicate / malformed",
         format!(

@@ -232,6 +232,7 @@ fn the_table_shows_the_ros2_devices_refusals_and_commands() {
                 out_of_range: 5,
                 impossible_jumps: 6,
                 twists_refused: 7,
+                wrong_frame: 11,
                 from_future: 12,
                 ..GateCounts::default()
             },
@@ -255,7 +256,10 @@ fn the_table_shows_the_ros2_devices_refusals_and_commands() {
         value(&t, "ros2 device: poses received / accepted"),
         "100 / 88"
     );
-    assert_eq!(value(&t, "  refused: from the future"), "12");
+    assert_eq!(
+        value(&t, "  refused: other frame / from the future"),
+        "11 / 12"
+    );
     assert_eq!(
         value(&t, "  refused: out of order / duplicate / malformed"),
         "1 / 2 / 3"

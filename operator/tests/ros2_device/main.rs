@@ -446,6 +446,10 @@ fn a_bad_ros2_flag_is_one_line_on_stderr_and_a_failure_exit() {
             "--ros-command-len 9: expected 3 to 7",
         ),
         (["--qos", "command=keep-last-0"], "QoS \"keep-last-0\""),
+        (
+            ["--ros-pose-frame", ""],
+            "--ros-pose-frame \"\": expected the poses' frame_id",
+        ),
     ] {
         let output = std::process::Command::new(env!("CARGO_BIN_EXE_operator"))
             .args(["run", "--device", "ros2"])

@@ -1,7 +1,8 @@
 //! Regressions of `--device ros2`, each named after the bug it pins: a pose stamped ahead that
-//! stopped every pose after it.
+//! stopped every pose after it, an unchecked frame.
 
 use super::*;
+use ros2::haptic::ExpectedFrame;
 use ros2::msg::Time;
 
 /// [`moving`], with two poses stamped ahead of the driver once `go` is seen: a non-finite one
@@ -52,4 +53,48 @@ fn one_pose_stamped_ahead_does_not_stop_the_poses_after_it() {
         "{g:?}"
     );
     assert_eq!(device.operating_state(), OperatingState::Disabled);
+}
+
+/// Regression: the pose's `frame_id` was recorded, never checked. Poses re-published in the
+/// launch file's `world` (a half turn about z from `fd_base`) would have turned x and y forces
+/// round: they are refused and counted, the device never opens on them, and the error says
+/// which frame arrived; `--ros-pose-frame any` takes them.
+#[test]
+fn a_pose_in_another_frame_is_refused_and_never_reaches_the_device() {
+    let (graph, topics) = isolated();
+    let mut script = moving();
+    let d = double(
+        &graph,
+        &topics,
+        Box::new(move |k, now| {
+            let mut step = script(k, now);
+            if let Some(p) = step.pose.as_mut() {
+                p.header.frame_id = "world".into();
+            }
+            step
+        }),
+    );
+    let io = RosHaptic::start(&Graph::join(&graph).unwrap(), config(&topics, DEADLINE)).unwrap();
+    testkit::wait_for(DEADLINE, || {
+        Some(io.report().io.gate).filter(|g| g.wrong_frame > 0)
+    })
+    .unwrap();
+    let e = io.wait_for_pose(Duration::ZERO).unwrap_err().to_string();
+    assert!(
+        e.contains("(the first: \"world\"; --ros-pose-frame)"),
+        "{e}"
+    );
+    assert_eq!(io.take_sample(), None);
+    assert!(io.describe().contains("(frame fd_base)"));
+    drop(io);
+    let any = HapticConfig {
+        pose_frame: ExpectedFrame::Any,
+        ..config(&topics, DEADLINE)
+    };
+    let device = open(&graph, any);
+    let frame = testkit::wait_for(DEADLINE, || {
+        Some(report(device.as_ref()).io.frame_id).filter(|f| !f.is_empty())
+    });
+    assert_eq!(frame.as_deref(), Some("world"));
+    drop(d);
 }

@@ -2,6 +2,7 @@
 //! stamp. Pure (no DDS, no clock): the I/O thread feeds it messages with their [`Receipt`]s.
 //!
 //! # Refusals (each counted in [`GateCounts`])
+//! - a `frame_id` other than the expected one ([`ExpectedFrame`]);
 //! - a stamp with `nanosec ≥ 1e9` (malformed);
 //! - a stamp more than [`GateConfig::max_ahead_ns`] ahead of the receiver's ROS clock (from the
 //!   future: another clock's);
@@ -25,6 +26,7 @@
 use mmt::vec3::{self, Vec3};
 use serde::Serialize;
 
+use super::HapticError;
 use crate::msg::{PoseStamped, TwistStamped};
 use crate::state::{Arrival, arrival, within_speed};
 
@@ -64,6 +66,53 @@ impl Default for GateConfig {
     }
 }
 
+/// The frame poses must be in (their `header.frame_id`).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub enum ExpectedFrame {
+    /// Any frame (`--ros-pose-frame any`): the frame is not checked.
+    Any,
+    /// This frame only. Default `fd_base`, forcedimension_ros2's: the frame the forces are
+    /// written in. A pose re-published in another frame (the launch file's `world` is a half
+    /// turn about z from `fd_base`) would turn the forces the wrong way.
+    Named(String),
+}
+
+impl Default for ExpectedFrame {
+    fn default() -> Self {
+        ExpectedFrame::Named("fd_base".to_owned())
+    }
+}
+
+impl ExpectedFrame {
+    /// `any`, or a frame name (no whitespace).
+    pub fn parse(text: &str) -> Result<ExpectedFrame, HapticError> {
+        match text {
+            "any" => Ok(ExpectedFrame::Any),
+            _ if text.is_empty() || text.chars().any(char::is_whitespace) => {
+                Err(HapticError::PoseFrame(text.to_owned()))
+            }
+            _ => Ok(ExpectedFrame::Named(text.to_owned())),
+        }
+    }
+
+    /// Whether a pose in `frame_id` is accepted.
+    pub fn accepts(&self, frame_id: &str) -> bool {
+        match self {
+            ExpectedFrame::Any => true,
+            ExpectedFrame::Named(name) => name == frame_id,
+        }
+    }
+}
+
+impl std::fmt::Display for ExpectedFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ExpectedFrame::Any => f.write_str("any (NOT checked)"),
+            ExpectedFrame::Named(name) => f.write_str(name),
+        }
+    }
+}
+
 /// When a message arrived, on both of the receiver's clocks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Receipt {
@@ -93,6 +142,8 @@ pub struct GateCounts {
     pub poses: u64,
     /// Poses accepted (samples made).
     pub accepted: u64,
+    /// Poses in another frame than the expected one.
+    pub wrong_frame: u64,
     /// Poses or twists whose stamp had `nanosec ≥ 1e9`.
     pub malformed_stamps: u64,
     /// Poses stamped more than [`GateConfig::max_ahead_ns`] ahead of the receiver's clock.
@@ -122,6 +173,9 @@ const HISTORY: usize = 64;
 #[derive(Clone, Debug)]
 pub struct PoseGate {
     config: GateConfig,
+    frame: ExpectedFrame,
+    /// The first refused frame, for the report.
+    other_frame: Option<String>,
     twist: bool,
     newest_pose: Option<i64>,
     newest_twist: Option<i64>,
@@ -135,10 +189,12 @@ pub struct PoseGate {
 }
 
 impl PoseGate {
-    /// A gate for `config`; `twist`: a twist topic gives the velocity.
-    pub fn new(config: GateConfig, twist: bool) -> PoseGate {
+    /// A gate for `config`, poses in `frame`; `twist`: a twist topic gives the velocity.
+    pub fn new(config: GateConfig, frame: ExpectedFrame, twist: bool) -> PoseGate {
         PoseGate {
             config,
+            frame,
+            other_frame: None,
             twist,
             newest_pose: None,
             newest_twist: None,
@@ -153,6 +209,13 @@ impl PoseGate {
     /// A pose arrived: the sample it makes, or `None` (refused, counted).
     pub fn on_pose(&mut self, msg: &PoseStamped, at: Receipt) -> Option<DeviceSample> {
         self.counts.poses += 1;
+        if !self.frame.accepts(&msg.header.frame_id) {
+            self.counts.wrong_frame += 1;
+            if self.other_frame.is_none() {
+                self.other_frame = Some(msg.header.frame_id.clone());
+            }
+            return None;
+        }
         let stamp = self.stamp(msg, at.ros_ns)?;
         let position = msg.pose.position.to_array();
         let o = msg.pose.orientation;
@@ -206,6 +269,11 @@ impl PoseGate {
     /// What it did.
     pub fn counts(&self) -> GateCounts {
         self.counts
+    }
+
+    /// The first frame a pose was refused for, if any.
+    pub fn other_frame(&self) -> Option<&str> {
+        self.other_frame.as_deref()
     }
 
     /// The pose's stamp if it is well-formed, not from the future and newer than the newest

@@ -104,7 +104,7 @@ pub(super) fn spawn(
         command,
         command_len: config.command_len,
         shared: Arc::clone(&shared),
-        gate: PoseGate::new(config.gate, t.twist.is_some()),
+        gate: PoseGate::new(config.gate, config.pose_frame.clone(), t.twist.is_some()),
         report: IoReport::default(),
         stale_after_ns: duration_ns(config.stale_after),
         watchdog_ns: duration_ns(config.command_watchdog),
@@ -285,6 +285,9 @@ impl Io {
 
     fn share_report(&mut self) {
         self.report.gate = self.gate.counts();
+        if self.report.other_frame.is_none() {
+            self.report.other_frame = self.gate.other_frame().map(str::to_owned);
+        }
         self.shared
             .io
             .lock()

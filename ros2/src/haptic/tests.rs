@@ -29,7 +29,7 @@ fn clock(k: i64) -> Receipt {
 }
 
 fn gate(twist: bool) -> PoseGate {
-    PoseGate::new(GateConfig::default(), twist)
+    PoseGate::new(GateConfig::default(), ExpectedFrame::default(), twist)
 }
 
 #[test]
@@ -50,11 +50,14 @@ fn the_defaults_are_forcedimension_ros2s_and_remap_one_by_one() {
     assert_eq!(t.pose.as_str(), "/left/fd/ee_pose");
     assert_eq!(t.twist.as_ref().unwrap().as_str(), "/left/fd/ee_twist");
     assert!(t.button.is_none() && t.command.is_none());
-    let text = t.describe(CommandLen::FORCES);
+    let text = t.describe(CommandLen::FORCES, &ExpectedFrame::default());
     assert!(
-        text.contains("command = none (NO force is written)"),
+        text.contains("pose = /left/fd/ee_pose (frame fd_base)")
+            && text.contains("command = none (NO force is written)"),
         "{text}"
     );
+    let text = t.describe(CommandLen::FORCES, &ExpectedFrame::Any);
+    assert!(text.contains("(frame any (NOT checked))"), "{text}");
     for (rule, says) in [
         (
             "wrench=/x",
@@ -294,4 +297,42 @@ fn a_pose_stamped_over_a_second_ahead_of_the_clock_is_refused_and_counted() {
             .is_none()
     );
     assert_eq!(g.counts().from_future, 1);
+}
+
+/// Regression: the pose's frame was recorded, never checked: a pose re-published in the launch
+/// file's `world` (a half turn about z from `fd_base`) would have turned x and y forces round.
+#[test]
+fn a_pose_in_another_frame_is_refused_and_counted_unless_any_frame_is_accepted() {
+    let mut g = gate(false);
+    let mut world = fd_pose(MS, [0.01, 0.0, 0.0]);
+    world.header.frame_id = "world".into();
+    assert!(g.on_pose(&world, rx(0)).is_none());
+    world.header.frame_id = "base".into();
+    world.header.stamp = Time::from_nanos(2 * MS);
+    assert!(g.on_pose(&world, rx(0)).is_none());
+    assert!(g.on_pose(&fd_pose(MS, [0.01, 0.0, 0.0]), rx(0)).is_some());
+    assert_eq!((g.counts().wrong_frame, g.counts().accepted), (2, 1));
+    assert_eq!(g.other_frame(), Some("world"));
+    let io = IoReport {
+        gate: g.counts(),
+        other_frame: g.other_frame().map(str::to_owned),
+        ..IoReport::default()
+    };
+    let text = seen(&io);
+    assert!(
+        text.contains("in another frame 2 (the first: \"world\"; --ros-pose-frame)"),
+        "{text}"
+    );
+    let mut any = PoseGate::new(GateConfig::default(), ExpectedFrame::Any, false);
+    assert!(any.on_pose(&world, rx(0)).is_some());
+    // The flag's values.
+    assert_eq!(ExpectedFrame::parse("any").unwrap(), ExpectedFrame::Any);
+    assert_eq!(
+        ExpectedFrame::parse("fd_base").unwrap(),
+        ExpectedFrame::default()
+    );
+    for bad in ["", "fd base"] {
+        let e = ExpectedFrame::parse(bad).unwrap_err().to_string();
+        assert!(e.contains(&format!("--ros-pose-frame {bad:?}")), "{e}");
+    }
 }
