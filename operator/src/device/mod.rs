@@ -351,7 +351,7 @@ pub enum DeviceError {
     /// The ROS 2 device could not start (the graph, a topic, no pose).
     #[error(transparent)]
     Ros2(#[from] ros2::haptic::HapticError),
-    /// The ROS 2 device's pose stopped: no new valid pose for longer than the limit.
+    /// The ROS 2 device's pose stopped: the newest valid pose arrived longer ago than the limit.
     #[error(
         "no valid pose on {topic} for {age:?} (limit {limit:?}): forces off; the driver stopped \
          publishing, or refused poses (the report's ros2 device counts say which)"
@@ -359,7 +359,7 @@ pub enum DeviceError {
     StalePose {
         /// The pose topic.
         topic: std::sync::Arc<str>,
-        /// Time since the last new valid pose (by the loop's clock).
+        /// Time since the newest valid pose arrived (the I/O thread's receipt).
         age: Duration,
         /// The limit.
         limit: Duration,

@@ -5,9 +5,11 @@
 //!   first valid pose ([`RosOptions::first_pose_timeout`]); none is an error naming the topic,
 //!   the domain and what arrived instead. The loop therefore starts from a real pose.
 //! - **read**, once per tick: the newest checked sample (lock-free), the button as the clutch.
-//!   With no new valid pose for [`RosOptions::stale_after`] of the loop's `now` (50 ms, the
-//!   telerobot's stale-state rule), the read fails with [`DeviceError::StalePose`], which
-//!   faults the device (zero force, forces off, logged once); the reading holds the last pose.
+//!   When the newest valid pose *arrived* more than [`HapticConfig::stale_after`] ago (50 ms,
+//!   the telerobot's stale-state rule; measured from its receipt by the I/O thread, so a pose
+//!   that was already old when the loop first took it is stale at once), the read fails with
+//!   [`DeviceError::StalePose`], which faults the device (zero force, forces off, logged once);
+//!   the reading holds the last pose.
 //! - **write**: hands the force to the I/O thread, which publishes it only once a pose has
 //!   arrived, and as zero while the pose is stale or forces are off (`ros2::haptic`).
 //!
@@ -15,7 +17,10 @@
 //! are an Omega's driver's (which caps forces at 12 N itself). Frame: the pose's (`fd_base`,
 //! the SDK's frame, as `--device omega`).
 //!
-//! Nothing here reads a clock: staleness is measured on the `now` the loop passes in.
+//! The one clock read here is the monotonic clock ([`rt::monotonic_ns`], no system call, no
+//! allocation) in `read`: a sample's receipt time is on it. The loop's `now` is not used for
+//! staleness: its origin moves (the first read is at `now` = 0, before the loop's schedule
+//! starts), and the time a sample was *taken* says nothing of how old it was.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -53,9 +58,10 @@ pub struct RosBackend {
     io: RosHaptic,
     capabilities: DeviceCapabilities,
     pose_topic: Arc<str>,
-    stale_after: Duration,
-    /// The newest sample taken, and the `now` it was taken at.
-    latest: Option<(DeviceSample, Duration)>,
+    /// [`HapticConfig::stale_after`] \[ns\].
+    stale_after_ns: i64,
+    /// The newest sample taken.
+    latest: Option<DeviceSample>,
 }
 
 impl RosBackend {
@@ -76,7 +82,8 @@ impl RosBackend {
             pose_topic: Arc::from(io.pose_topic()),
             io,
             capabilities,
-            stale_after: options.device.stale_after,
+            stale_after_ns: i64::try_from(options.device.stale_after.as_nanos())
+                .unwrap_or(i64::MAX),
             latest: None,
         })
     }
@@ -87,26 +94,21 @@ impl Backend for RosBackend {
         &self.capabilities
     }
 
-    fn read(&mut self, now: Duration) -> Result<DeviceReading, DeviceError> {
+    fn read(&mut self, _now: Duration) -> Result<DeviceReading, DeviceError> {
         if let Some(s) = self.io.take_sample() {
-            self.latest = Some((s, now));
+            self.latest = Some(s);
         }
-        let Some((s, taken_at)) = self.latest else {
-            // Open waited for a pose: only a device used before open returned gets here.
+        // Open waited for a pose: none is a pose that never arrived (infinitely old).
+        let age_ns = self.latest.map_or(i64::MAX, |s| {
+            rt::monotonic_ns().saturating_sub(s.received_ns)
+        });
+        let Some(s) = self.latest.filter(|_| age_ns <= self.stale_after_ns) else {
             return Err(DeviceError::StalePose {
                 topic: Arc::clone(&self.pose_topic),
-                age: now,
-                limit: self.stale_after,
+                age: Duration::from_nanos(u64::try_from(age_ns).unwrap_or(0)),
+                limit: Duration::from_nanos(u64::try_from(self.stale_after_ns).unwrap_or(0)),
             });
         };
-        let age = now.saturating_sub(taken_at);
-        if age > self.stale_after {
-            return Err(DeviceError::StalePose {
-                topic: Arc::clone(&self.pose_topic),
-                age,
-                limit: self.stale_after,
-            });
-        }
         Ok(DeviceReading {
             position_m: s.position_m,
             velocity_m_per_s: s.velocity_m_per_s,

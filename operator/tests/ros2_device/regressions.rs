@@ -1,5 +1,5 @@
 //! Regressions of `--device ros2`, each named after the bug it pins: a pose stamped ahead that
-//! stopped every pose after it, an unchecked frame.
+//! stopped every pose after it, an unchecked frame, staleness counted from the wrong time.
 
 use super::*;
 use ros2::haptic::ExpectedFrame;
@@ -96,5 +96,59 @@ fn a_pose_in_another_frame_is_refused_and_never_reaches_the_device() {
         Some(report(device.as_ref()).io.frame_id).filter(|f| !f.is_empty())
     });
     assert_eq!(frame.as_deref(), Some("world"));
+    drop(d);
+}
+
+/// Regression: staleness was counted from when the loop *took* a sample, so the first read
+/// (`first_node`'s `update(0)`) accepted a waiting pose however old. It is counted from the
+/// pose's receipt: a pose already old when the loop starts is stale at once.
+#[test]
+fn a_pose_already_old_when_the_loop_starts_is_stale_at_once() {
+    let (graph, topics) = isolated();
+    let (stop, stopped) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
+    let last_stamp = Arc::new(std::sync::atomic::AtomicI64::new(0));
+    let (mut script, seen, last) = (moving(), Arc::clone(&stopped), Arc::clone(&last_stamp));
+    let halt = Arc::clone(&stop);
+    let d = double(
+        &graph,
+        &topics,
+        Box::new(move |k, now| {
+            if halt.load(Relaxed) {
+                // The double's ticks are sequential: every earlier pose is published by now.
+                seen.store(true, Relaxed);
+                return Step::default();
+            }
+            let step = script(k, now);
+            let stamp = step.pose.as_ref().and_then(|p| p.header.stamp.to_nanos());
+            last.store(stamp.unwrap(), Relaxed);
+            step
+        }),
+    );
+    let stale_after = Duration::from_millis(100);
+    let mut config = config(&topics, stale_after);
+    // Reliable: the double's last pose is received.
+    config.state_qos = Qos::parse("reliable,keep-last-100", Qos::STREAM).unwrap();
+    let mut device = open(&graph, config);
+    stop.store(true, Relaxed);
+    // The double's last pose has been received (and it publishes no more).
+    testkit::wait_for(DEADLINE, || {
+        let newest = report(device.as_ref())
+            .io
+            .stamp_span_ns
+            .map(|(_, last)| last);
+        (stopped.load(Relaxed) && newest == Some(last_stamp.load(Relaxed))).then_some(())
+    })
+    .unwrap();
+    // Older than the limit by construction: no speed is assumed.
+    std::thread::sleep(stale_after * 3);
+    let e = device.update(Duration::ZERO).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("no valid pose on {} for", topics.pose)),
+        "{e}"
+    );
+    assert_eq!(device.operating_state(), OperatingState::Faulted);
     drop(d);
 }
