@@ -120,7 +120,7 @@ pub(crate) struct HapticLoop {
 
 /// What the loop hands back when it stops.
 pub struct LoopEnd {
-    /// The device (disabled).
+    /// The device (closed: disabled, its backend's report final).
     pub device: Box<dyn HapticDevice>,
     /// What the safety layer did.
     pub safety: SafetyStats,
@@ -167,7 +167,9 @@ impl HapticLoop {
             state.ticks = tick.index + 1;
         }
         let end = Duration::from_nanos(u64::try_from(rt::monotonic_ns() - start_ns).unwrap_or(0));
-        if let Err(e) = self.device.disable(end) {
+        // Closed before the report is built: a backend's last counts (its closing zero
+        // included) are in it.
+        if let Err(e) = self.device.close(end) {
             tracing::warn!("disabling the device: {e}");
         }
         LoopEnd {

@@ -58,8 +58,8 @@
 //! - The loop's commands stopping for [`HapticConfig::command_watchdog`] (20 ms, the Omega
 //!   SDK watchdog `--device omega` sets, which the driver does not) after a non-zero force:
 //!   zero is published, counted and logged — the controller would hold the force forever.
-//! - Forces switched off, and the I/O thread stopping (with a last zero, then 100 ms for the
-//!   reliable writer to deliver it): zero.
+//! - Forces switched off, and the I/O thread stopping ([`RosHaptic::close`], or the drop: a
+//!   last zero, then 100 ms for the reliable writer to deliver it): zero.
 //! - Poses are checked by [`gate::PoseGate`] (frame, stamp, finiteness, range, speed), every
 //!   refusal counted in [`HapticReport`].
 
@@ -299,8 +299,6 @@ pub struct CommandCounts {
     pub stale_episodes: u64,
     /// Zeros published because the loop's commands stopped after a non-zero force.
     pub watchdog_zeroed: u64,
-    /// The loop's commands that were not finite (published as zero).
-    pub non_finite: u64,
     /// Publications the middleware refused.
     pub publish_errors: u64,
 }
@@ -364,8 +362,8 @@ pub(crate) struct Shared {
     pub(crate) io: Mutex<IoReport>,
 }
 
-/// The device on the graph (loop side). Dropping it publishes zero force and stops the I/O
-/// thread.
+/// The device on the graph (loop side). Closing or dropping it publishes zero force and stops
+/// the I/O thread.
 pub struct RosHaptic {
     shared: Arc<Shared>,
     io: Option<JoinHandle<()>>,
@@ -421,7 +419,8 @@ impl RosHaptic {
         self.shared.button.load(Relaxed)
     }
 
-    /// Hands over the force to write \[N\] (lock-free; the I/O thread publishes the newest).
+    /// Hands over the force to write \[N\] (lock-free; the I/O thread publishes the newest, a
+    /// non-finite one as zero).
     pub fn command(&self, force_n: Vec3) {
         self.shared.forces.push(force_n);
         let _ = self.shared.waker.wake();
@@ -450,7 +449,20 @@ impl RosHaptic {
         format!("domain {}: {}", self.domain_id, self.topics)
     }
 
-    /// The report as of now (locks: not for the loop).
+    /// Publishes zero and stops the I/O thread (blocking, about 100 ms: not for the loop):
+    /// from here the counts are final, [`RosHaptic::report`] gives every command published, the
+    /// closing zero included, and the device reads and writes nothing. Dropping closes it too.
+    pub fn close(&mut self) {
+        self.shared.forces_on.store(false, Relaxed);
+        self.shared.stop.store(true, Relaxed);
+        let _ = self.shared.waker.wake();
+        if let Some(h) = self.io.take() {
+            let _ = h.join();
+        }
+    }
+
+    /// The report: as of at most 20 ms ago while the device runs, final once it is closed
+    /// (locks: not for the loop).
     pub fn report(&self) -> HapticReport {
         let io = self
             .shared
@@ -483,12 +495,7 @@ impl RosHaptic {
 
 impl Drop for RosHaptic {
     fn drop(&mut self) {
-        self.shared.forces_on.store(false, Relaxed);
-        self.shared.stop.store(true, Relaxed);
-        let _ = self.shared.waker.wake();
-        if let Some(h) = self.io.take() {
-            let _ = h.join();
-        }
+        self.close();
     }
 }
 

@@ -313,6 +313,12 @@ impl<B: Backend> HapticDevice for ManagedDevice<B> {
     fn backend_report(&self) -> Option<super::BackendReport> {
         self.backend.report()
     }
+
+    fn close(&mut self, now: Duration) -> Result<(), DeviceError> {
+        let disabled = self.disable(now);
+        self.backend.close();
+        disabled
+    }
 }
 
 #[cfg(test)]

@@ -249,6 +249,10 @@ pub trait HapticDevice: Send {
     fn backend_report(&self) -> Option<BackendReport> {
         None
     }
+    /// Ends the run: [`HapticDevice::disable`], then stops the backend's I/O (may block: not
+    /// for a tick), so that [`HapticDevice::backend_report`] is final from here. The device is
+    /// not used after it: reads fail, writes reach nothing.
+    fn close(&mut self, now: Duration) -> Result<(), DeviceError>;
 }
 
 /// The driver interface a backend implements. Keep it small: the state machine, the ramp and the
@@ -267,6 +271,9 @@ pub trait Backend: Send {
     fn report(&self) -> Option<BackendReport> {
         None
     }
+    /// Stops the backend's own I/O, once zero is written and forces are off, so that its
+    /// report is final (what it wrote while stopping included). Default: it has none.
+    fn close(&mut self) {}
 }
 
 /// A backend's own counters in the run report.

@@ -12,6 +12,8 @@
 //!   the reading holds the last pose.
 //! - **write**: hands the force to the I/O thread, which publishes it only once a pose has
 //!   arrived, and as zero while the pose is stale or forces are off (`ros2::haptic`).
+//! - **close** (the run's end): zero, then the I/O thread stops, so that the report built
+//!   after it counts every command published, the closing zero included.
 //!
 //! Limits: the omega.7's ([`DeviceCapabilities::omega7`]), as `--device omega`: the defaults
 //! are an Omega's driver's (which caps forces at 12 N itself). Frame: the pose's (`fd_base`,
@@ -25,7 +27,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use mmt::vec3::{self, Vec3};
+use mmt::vec3::Vec3;
 use ros2::haptic::{DeviceSample, HapticConfig, RosHaptic};
 use ros2::{Graph, GraphConfig};
 
@@ -117,11 +119,8 @@ impl Backend for RosBackend {
     }
 
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
-        self.io.command(if vec3::is_finite(force_n) {
-            force_n
-        } else {
-            vec3::ZERO
-        });
+        // Finite already (`ManagedDevice`); the I/O thread zeroes anything else regardless.
+        self.io.command(force_n);
         Ok(())
     }
 
@@ -132,5 +131,9 @@ impl Backend for RosBackend {
 
     fn report(&self) -> Option<BackendReport> {
         Some(BackendReport::Ros2(Box::new(self.io.report())))
+    }
+
+    fn close(&mut self) {
+        self.io.close();
     }
 }

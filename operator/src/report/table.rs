@@ -329,10 +329,7 @@ fn ros2_device_rows(rows: &mut Rows, d: &ros2::haptic::HapticReport) {
         "  commands published (zero) / errors",
         format!("{} ({}) / {}", c.published, c.zero, c.publish_errors),
     );
-    rows.row(
-        "  dropped before a pose / non-finite",
-        format!("{} / {}", c.before_pose, c.non_finite),
-    );
+    rows.row("  dropped before a pose", c.before_pose.to_string());
     rows.row(
         "  zeroed: stale pose (episodes) / watchdog",
         format!(

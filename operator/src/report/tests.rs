@@ -244,7 +244,6 @@ fn the_table_shows_the_ros2_devices_refusals_and_commands() {
                 stale_zeroed: 10,
                 stale_episodes: 1,
                 watchdog_zeroed: 2,
-                non_finite: 3,
                 publish_errors: 4,
             },
             ..IoReport::default()
@@ -273,7 +272,7 @@ fn the_table_shows_the_ros2_devices_refusals_and_commands() {
         value(&t, "  commands published (zero) / errors"),
         "90 (40) / 4"
     );
-    assert_eq!(value(&t, "  dropped before a pose / non-finite"), "9 / 3");
+    assert_eq!(value(&t, "  dropped before a pose"), "9");
     assert_eq!(
         value(&t, "  zeroed: stale pose (episodes) / watchdog"),
         "10 (1) / 2"

@@ -1,5 +1,6 @@
 //! Regressions of `--device ros2`, each named after the bug it pins: a pose stamped ahead that
-//! stopped every pose after it, an unchecked frame, staleness counted from the wrong time.
+//! stopped every pose after it, an unchecked frame, staleness counted from the wrong time, and
+//! a final report that missed the last commands.
 
 use super::*;
 use ros2::haptic::ExpectedFrame;
@@ -151,4 +152,75 @@ fn a_pose_already_old_when_the_loop_starts_is_stale_at_once() {
     );
     assert_eq!(device.operating_state(), OperatingState::Faulted);
     drop(d);
+}
+
+/// A device config whose every command published reaches the double once the endpoints match
+/// (reliable and deep), with no watchdog zero (the test's thread is the loop, and may be held
+/// up).
+fn every_command(topics: &HapticTopics) -> HapticConfig {
+    let mut config = config(topics, DEADLINE);
+    config.command_qos = Qos::parse("reliable,keep-last-1000", config.command_qos).unwrap();
+    config.command_watchdog = DEADLINE;
+    config
+}
+
+/// The commands in `r` whose x force is `fx`.
+fn count(r: &[Received], fx: f64) -> u64 {
+    r.iter().filter(|c| c.message.data[0] == fx).count() as u64
+}
+
+/// Regression: the run's report was built before the device was dropped, with counts shared
+/// every 20 ms: the closing zero and the last forces were missing. Closing the device first,
+/// the report counts every force the driver received.
+#[test]
+fn the_final_report_counts_every_command_the_closing_zero_included() {
+    let (graph, topics) = isolated();
+    let d = double(&graph, &topics, moving());
+    let mut device = open(&graph, every_command(&topics));
+    let start = Instant::now();
+    // Zeros until the endpoints have matched (those before are lost: counted, not received);
+    // then every force is received.
+    drive(device.as_mut(), start, [1.0, 0.0, 0.0], |_| {
+        !d.received().is_empty()
+    });
+    device.enable(start.elapsed()).unwrap();
+    drive(device.as_mut(), start, [1.0, 0.0, 0.0], |_| {
+        count(&d.received(), 1.0) > 100
+    });
+    device.close(start.elapsed()).unwrap();
+    let c = report(device.as_ref()).io.commands;
+    let forces = c.published - c.zero;
+    let received = wait_received(&d, |r| {
+        r.last().is_some_and(|c| c.message.data[0] == 0.0) && count(r, 1.0) >= forces
+    });
+    assert_eq!(count(&received, 1.0), forces, "{c:?}");
+    drop(device);
+    assert_eq!(d.stop().len(), received.len(), "nothing after the close");
+}
+
+/// The same at the device's own interface, where nothing is lost before the endpoints match:
+/// every zero the driver received is in the report once the device is closed, the disabling
+/// zero and the closing one included.
+#[test]
+fn a_closed_devices_report_counts_the_closing_zero() {
+    let (graph, topics) = isolated();
+    let d = double(&graph, &topics, moving());
+    let config = every_command(&topics);
+    let mut io = RosHaptic::start(&Graph::join(&graph).unwrap(), config).unwrap();
+    io.wait_for_pose(DEADLINE).unwrap();
+    io.set_forces(true);
+    // Forces only until the endpoints have matched: no zero is published before.
+    wait_received(&d, |r| {
+        io.command([1.0, 0.0, 0.0]);
+        std::thread::sleep(Duration::from_millis(1));
+        !r.is_empty()
+    });
+    io.set_forces(false);
+    io.close();
+    let c = io.report().io.commands;
+    let received = wait_received(&d, |r| count(r, 0.0) >= c.zero);
+    assert!(c.zero >= 1, "{c:?}");
+    assert_eq!(received.last().unwrap().message.data, [0.0; 3]);
+    drop(io);
+    assert_eq!(count(&d.stop(), 0.0), c.zero, "{c:?}");
 }

@@ -221,11 +221,9 @@ impl Io {
         let stale = self.pose_is_stale(now);
         let c = &mut self.report.commands;
         let mut force = force;
-        if !vec3::is_finite(force) {
-            c.non_finite += 1;
-            force = vec3::ZERO;
-        }
-        if !self.shared.forces_on.load(Relaxed) {
+        // Not counted: the operator's device never hands one over (its safety layer counts
+        // non-finite forces and zeroes them first); this is the last line for other callers.
+        if !vec3::is_finite(force) || !self.shared.forces_on.load(Relaxed) {
             force = vec3::ZERO;
         }
         if force != vec3::ZERO && stale {
