@@ -24,11 +24,19 @@
 //!
 //! # Refusals (each counted in [`StateCounts`])
 //! - a stamp with `nanosec ≥ 1e9` (malformed);
-//! - a pose whose stamp is not newer than the last one (out of order, or a duplicate);
-//! - a non-finite value anywhere, or (for a tool-frame wrench, which needs it) an orientation
-//!   that is not a rotation (a zero quaternion);
-//! - an impossible jump: faster than [`StateConfig::max_speed_m_per_s`] from the last accepted
-//!   sample.
+//! - a stamp not newer than the newest *accepted* one of its stream (out of order, or a
+//!   duplicate);
+//! - a non-finite value anywhere in a pose, twist or wrench, or (for a tool-frame wrench, which
+//!   needs it) a pose's orientation that is not a rotation (a zero quaternion);
+//! - an impossible jump: a pose faster than [`StateConfig::max_speed_m_per_s`] from the last
+//!   accepted pose.
+//!
+//! A refused message changes nothing but the counts: only an accepted message's stamp becomes
+//! the one later messages of its stream must be newer than. (A refused pose that moved it would
+//! make every good pose after it "out of order" until the driver's clock caught up: one garbage
+//! message from a second publisher, a bag replay or a clock step would stop the states for the
+//! rest of the session.) A pose is accepted on its stamp and its own values; the sample it makes
+//! may still be refused as unpaired, which does not undo that.
 
 use mmt::cloud::Pose;
 use mmt::vec3::{self, Vec3};
@@ -69,7 +77,7 @@ pub struct StateConfig {
     /// How far apart pose, twist and wrench stamps may be and still make one sample \[ns\].
     /// Default 2 ms: two ticks of a 1 kHz driver.
     pub pair_tolerance_ns: i64,
-    /// Faster than this between two samples is an impossible jump \[m/s\]. Default 3 m/s:
+    /// Faster than this between two poses is an impossible jump \[m/s\]. Default 3 m/s:
     /// above any collaborative arm's Cartesian limit (Franka: 1.7 m/s).
     pub max_speed_m_per_s: f64,
 }
@@ -112,19 +120,21 @@ pub struct StateCounts {
     pub samples: u64,
     /// Messages whose stamp had `nanosec ≥ 1e9`.
     pub malformed_stamps: u64,
-    /// Poses (or twists, wrenches) older than the newest of their stream.
+    /// Poses (or twists, wrenches) older than the newest accepted one of their stream.
     pub out_of_order: u64,
-    /// Poses (or twists, wrenches) with the same stamp as the newest of their stream.
+    /// Poses (or twists, wrenches) with the same stamp as the newest accepted one of their
+    /// stream.
     pub duplicates: u64,
-    /// Samples with a non-finite value or a zero quaternion.
+    /// Poses, twists or wrenches with a non-finite value, or poses with a zero quaternion (for a
+    /// tool-frame wrench).
     pub non_finite: u64,
-    /// Samples beyond the plausible speed.
+    /// Poses beyond the plausible speed from the last accepted pose.
     pub impossible_jumps: u64,
     /// Poses with no wrench (or twist) within the pairing tolerance.
     pub unpaired: u64,
 }
 
-/// One stream's last two samples (stamp, value).
+/// One stream's last two accepted samples (stamp, value).
 #[derive(Clone, Copy, Debug, Default)]
 struct Recent {
     latest: Option<(i64, Vec3)>,
@@ -132,22 +142,15 @@ struct Recent {
 }
 
 impl Recent {
-    /// Stores a sample; returns the refusal, if any.
-    fn push(&mut self, stamp: i64, v: Vec3, counts: &mut StateCounts) -> bool {
-        match arrival(self.latest.map(|(t, _)| t), stamp) {
-            Arrival::Duplicate => {
-                counts.duplicates += 1;
-                return false;
-            }
-            Arrival::OutOfOrder => {
-                counts.out_of_order += 1;
-                return false;
-            }
-            Arrival::Newer => {}
-        }
+    /// The newest accepted stamp.
+    fn newest(&self) -> Option<i64> {
+        self.latest.map(|(t, _)| t)
+    }
+
+    /// Stores an accepted sample.
+    fn push(&mut self, stamp: i64, v: Vec3) {
         self.previous = self.latest;
         self.latest = Some((stamp, v));
-        true
     }
 
     fn reached(&self, stamp: i64) -> bool {
@@ -178,16 +181,19 @@ struct PendingPose {
 pub struct StateAssembler {
     config: StateConfig,
     pending: Option<PendingPose>,
-    newest_pose: Option<i64>,
+    /// The newest accepted pose (stamp, position): what later poses must be newer than and
+    /// within speed of.
+    last_pose: Option<(i64, Vec3)>,
     twist: Recent,
     wrench: Recent,
+    /// The last emitted sample (stamp, position): the velocity without a twist topic.
     last: Option<(i64, Vec3)>,
     out: Vec<StateSample>,
     counts: StateCounts,
 }
 
-/// Where a header stamp falls against the newest stamp of its stream (the robot's state, a
-/// haptic device's pose): only a newer stamp is a new sample.
+/// Where a header stamp falls against the newest accepted stamp of its stream (the robot's
+/// state, a haptic device's pose): only a newer stamp is a new sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Arrival {
     /// Newer than the newest (or the first).
@@ -221,12 +227,9 @@ pub(crate) fn within_speed(
     })
 }
 
-fn stamp_ns(t: Time, counts: &mut StateCounts) -> Option<i64> {
-    let ns = t.to_nanos();
-    if ns.is_none() {
-        counts.malformed_stamps += 1;
-    }
-    ns
+/// The rotation of a quaternion (x, y, z, w); `None` if it is not one (zero or non-finite).
+fn rotation([x, y, z, w]: [f64; 4]) -> Option<Pose> {
+    Pose::from_quaternion([w, x, y, z], [0.0; 3])
 }
 
 impl StateAssembler {
@@ -235,7 +238,7 @@ impl StateAssembler {
         StateAssembler {
             config,
             pending: None,
-            newest_pose: None,
+            last_pose: None,
             twist: Recent::default(),
             wrench: Recent::default(),
             last: None,
@@ -252,42 +255,27 @@ impl StateAssembler {
     /// A pose arrived at `received_ns`.
     pub fn on_pose(&mut self, msg: &PoseStamped, received_ns: i64) {
         self.counts.poses += 1;
-        let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts) else {
+        let newest = self.last_pose.map(|(t, _)| t);
+        let Some(stamp) = self.check_stamp(msg.header.stamp, newest) else {
             return;
         };
-        match arrival(self.newest_pose, stamp) {
-            Arrival::Duplicate => {
-                self.counts.duplicates += 1;
-                return;
-            }
-            Arrival::OutOfOrder => {
-                self.counts.out_of_order += 1;
-                return;
-            }
-            Arrival::Newer => {}
-        }
-        self.newest_pose = Some(stamp);
-        if let Some(old) = self.pending.take() {
+        let Some(pose) = self.check_pose(msg, stamp, received_ns) else {
+            return;
+        };
+        // Accepted: only now does its stamp bound the poses after it.
+        self.last_pose = Some((stamp, pose.position));
+        if let Some(old) = self.pending.replace(pose) {
             self.emit(old); // overtaken: the nearest wrench and twist, or unpaired
         }
-        let o = msg.pose.orientation;
-        self.pending = Some(PendingPose {
-            stamp,
-            received_ns,
-            position: msg.pose.position.to_array(),
-            orientation: [o.x, o.y, o.z, o.w],
-        });
         self.try_complete();
     }
 
     /// A twist arrived.
     pub fn on_twist(&mut self, msg: &TwistStamped) {
         self.counts.twists += 1;
-        if let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts)
-            && self
-                .twist
-                .push(stamp, msg.twist.linear.to_array(), &mut self.counts)
-        {
+        let v = msg.twist.linear.to_array();
+        if let Some(stamp) = self.check_vector(msg.header.stamp, self.twist.newest(), v) {
+            self.twist.push(stamp, v);
             self.try_complete();
         }
     }
@@ -295,11 +283,9 @@ impl StateAssembler {
     /// A wrench arrived.
     pub fn on_wrench(&mut self, msg: &WrenchStamped) {
         self.counts.wrenches += 1;
-        if let Some(stamp) = stamp_ns(msg.header.stamp, &mut self.counts)
-            && self
-                .wrench
-                .push(stamp, msg.wrench.force.to_array(), &mut self.counts)
-        {
+        let f = msg.wrench.force.to_array();
+        if let Some(stamp) = self.check_vector(msg.header.stamp, self.wrench.newest(), f) {
+            self.wrench.push(stamp, f);
             self.try_complete();
         }
     }
@@ -318,6 +304,63 @@ impl StateAssembler {
         self.counts
     }
 
+    /// The stamp `t` if it is well-formed and newer than `newest` (the newest accepted of its
+    /// stream); else counted.
+    fn check_stamp(&mut self, t: Time, newest: Option<i64>) -> Option<i64> {
+        let c = &mut self.counts;
+        let Some(stamp) = t.to_nanos() else {
+            c.malformed_stamps += 1;
+            return None;
+        };
+        match arrival(newest, stamp) {
+            Arrival::Newer => return Some(stamp),
+            Arrival::Duplicate => c.duplicates += 1,
+            Arrival::OutOfOrder => c.out_of_order += 1,
+        }
+        None
+    }
+
+    /// A twist's or wrench's stamp if it and the vector `v` pass; else counted.
+    fn check_vector(&mut self, t: Time, newest: Option<i64>, v: Vec3) -> Option<i64> {
+        let stamp = self.check_stamp(t, newest)?;
+        if !vec3::is_finite(v) {
+            self.counts.non_finite += 1;
+            return None;
+        }
+        Some(stamp)
+    }
+
+    /// The pose at `stamp` if its own values pass: finite, a rotation when a tool-frame wrench
+    /// needs one, within speed of the last accepted pose; else counted.
+    fn check_pose(
+        &mut self,
+        msg: &PoseStamped,
+        stamp: i64,
+        received_ns: i64,
+    ) -> Option<PendingPose> {
+        let position = msg.pose.position.to_array();
+        let o = msg.pose.orientation;
+        let orientation = [o.x, o.y, o.z, o.w];
+        let finite = vec3::is_finite(position) && orientation.iter().all(|c| c.is_finite());
+        // The orientation matters only to rotate a tool-frame wrench.
+        let rotation_needed = self.config.wrench_frame == WrenchFrame::Tool;
+        if !finite || (rotation_needed && rotation(orientation).is_none()) {
+            self.counts.non_finite += 1;
+            return None;
+        }
+        let max_speed = self.config.max_speed_m_per_s;
+        if !within_speed(self.last_pose, stamp, position, max_speed) {
+            self.counts.impossible_jumps += 1;
+            return None;
+        }
+        Some(PendingPose {
+            stamp,
+            received_ns,
+            position,
+            orientation,
+        })
+    }
+
     fn try_complete(&mut self) {
         let Some(p) = self.pending else { return };
         let ready =
@@ -328,47 +371,23 @@ impl StateAssembler {
         }
     }
 
+    /// The pending pose `p` with the nearest wrench (and twist), or unpaired. Every value was
+    /// checked on arrival.
     fn emit(&mut self, p: PendingPose) {
         let tol = self.config.pair_tolerance_ns;
-        let Some(force) = self.wrench.nearest(p.stamp, tol) else {
+        let force = self.wrench.nearest(p.stamp, tol);
+        let twist = if self.config.twist {
+            self.twist.nearest(p.stamp, tol).map(Some)
+        } else {
+            Some(None) // differentiated below
+        };
+        let (Some(force), Some(twist)) = (force, twist) else {
             self.counts.unpaired += 1;
             return;
         };
-        let twist = if self.config.twist {
-            match self.twist.nearest(p.stamp, tol) {
-                Some(v) => Some(v),
-                None => {
-                    self.counts.unpaired += 1;
-                    return;
-                }
-            }
-        } else {
-            None
-        };
-        let finite = vec3::is_finite(p.position)
-            && vec3::is_finite(force)
-            && twist.is_none_or(vec3::is_finite)
-            && p.orientation.iter().all(|c| c.is_finite());
-        let [x, y, z, w] = p.orientation;
-        let rotation = Pose::from_quaternion([w, x, y, z], [0.0; 3]);
-        // The orientation matters only to rotate a tool-frame wrench.
-        let rotation_needed = self.config.wrench_frame == WrenchFrame::Tool;
-        if !finite || (rotation_needed && rotation.is_none()) {
-            self.counts.non_finite += 1;
-            return;
-        }
-        if !within_speed(
-            self.last,
-            p.stamp,
-            p.position,
-            self.config.max_speed_m_per_s,
-        ) {
-            self.counts.impossible_jumps += 1;
-            return;
-        }
         let force = match self.config.wrench_frame {
             WrenchFrame::Base => force,
-            WrenchFrame::Tool => rotation.map_or(force, |r| r.rotate(force)),
+            WrenchFrame::Tool => rotation(p.orientation).map_or(force, |r| r.rotate(force)),
         };
         let force = match self.config.wrench_sign {
             WrenchSign::OnTool => force,

@@ -120,7 +120,11 @@ fn out_of_order_duplicates_and_malformed_stamps_are_dropped_and_counted() {
 
 #[test]
 fn non_finite_values_and_impossible_jumps_are_refused() {
-    let mut a = StateAssembler::new(StateConfig::default());
+    // Exact pairing: a pose whose twist or wrench is refused is left unpaired.
+    let mut a = StateAssembler::new(StateConfig {
+        pair_tolerance_ns: 0,
+        ..StateConfig::default()
+    });
     let step = |a: &mut StateAssembler, k: i64, p: Vec3, v: Vec3, f: Vec3| {
         a.on_pose(&pose(k * MS, p), 0);
         a.on_twist(&twist(k * MS, v));
@@ -134,14 +138,67 @@ fn non_finite_values_and_impossible_jumps_are_refused() {
         0
     );
     assert_eq!(step(&mut a, 4, [0.0; 3], [0.0; 3], [0.0, 0.0, f64::NAN]), 0);
-    // 1 cm in 1 ms from the last accepted sample (at 1 ms, 4 ms ago): 2.5 m/s, plausible.
-    assert_eq!(step(&mut a, 5, [0.01, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
+    // 2 mm in 1 ms from the last accepted pose (at 4 ms): 2 m/s, plausible.
+    assert_eq!(step(&mut a, 5, [0.002, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
     // 1 cm more in 1 ms: 10 m/s, impossible.
-    assert_eq!(step(&mut a, 6, [0.02, 0.0, 0.0], [0.0; 3], [0.0; 3]), 0);
-    // The next sample is judged against the last accepted one: back where it was, fine.
-    assert_eq!(step(&mut a, 7, [0.0101, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
+    assert_eq!(step(&mut a, 6, [0.012, 0.0, 0.0], [0.0; 3], [0.0; 3]), 0);
+    // The next pose is judged against the last accepted one: back where it was, fine.
+    assert_eq!(step(&mut a, 7, [0.0021, 0.0, 0.0], [0.0; 3], [0.0; 3]), 1);
     let c = a.counts();
-    assert_eq!((c.non_finite, c.impossible_jumps, c.samples), (3, 1, 3));
+    assert_eq!((c.non_finite, c.impossible_jumps), (3, 1), "{c:?}");
+    assert_eq!((c.unpaired, c.samples), (2, 3), "poses 3 and 4: {c:?}");
+}
+
+/// Regression: a pose refused for its values (non-finite, no rotation for a tool-frame wrench,
+/// an impossible jump) still became the newest pose; one stamped ahead of the stream (a second
+/// publisher, a replay, a clock step) made every good pose after it out of order, and the states
+/// stopped for the rest of the session.
+#[test]
+fn a_refused_pose_stamped_ahead_does_not_stop_the_poses_after_it() {
+    let mut a = StateAssembler::new(StateConfig {
+        wrench_frame: WrenchFrame::Tool,
+        ..StateConfig::default()
+    });
+    let good = |a: &mut StateAssembler, k: i64| {
+        a.on_pose(&pose(k * MS, [0.1, 0.0, 0.0]), k);
+        a.on_twist(&twist(k * MS, [0.0; 3]));
+        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+        all(a).len()
+    };
+    assert_eq!(good(&mut a, 1), 1);
+    // Half a second ahead of the stream (within a second of the clock), each refused.
+    a.on_pose(&pose(500 * MS, [f64::NAN, 0.0, 0.0]), 2);
+    let mut no_rotation = pose(550 * MS, [0.1, 0.0, 0.0]);
+    no_rotation.pose.orientation.w = 0.0;
+    a.on_pose(&no_rotation, 3);
+    a.on_pose(&pose(600 * MS, [5.0, 0.0, 0.0]), 4); // 8 m/s from the last pose
+    for k in 2..=4 {
+        assert_eq!(good(&mut a, k), 1, "{:?}", a.counts());
+    }
+    let c = a.counts();
+    assert_eq!((c.non_finite, c.impossible_jumps), (2, 1), "{c:?}");
+    assert_eq!((c.out_of_order, c.samples), (0, 4), "{c:?}");
+}
+
+/// Regression (the same bug in the other streams): a twist or wrench refused for its values
+/// still became the newest of its stream; one stamped ahead left every pose after it unpaired.
+#[test]
+fn a_refused_twist_or_wrench_stamped_ahead_does_not_stop_the_states_after_it() {
+    let mut a = StateAssembler::new(StateConfig::default());
+    a.on_twist(&twist(500 * MS, [f64::NAN, 0.0, 0.0]));
+    a.on_wrench(&wrench(500 * MS, [0.0, f64::INFINITY, 0.0]));
+    for k in 1..=3 {
+        a.on_pose(&pose(k * MS, [0.0; 3]), k);
+        a.on_twist(&twist(k * MS, [0.0; 3]));
+        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+    }
+    let c = a.counts();
+    assert_eq!(all(&mut a).len(), 3, "{c:?}");
+    assert_eq!(
+        (c.non_finite, c.out_of_order, c.unpaired),
+        (2, 0, 0),
+        "{c:?}"
+    );
 }
 
 #[test]
