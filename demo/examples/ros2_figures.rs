@@ -6,7 +6,8 @@
 //! - error after stable and time to stable, both bridges (the ROS 2 one within 1 point);
 //! - the longest gap in the 1 kHz state stream (stamps, and receipts by the telerobot);
 //! - DDS one-way latency, state sample → telerobot (p50, p99; one host, one clock);
-//! - the bridge's counters (out of order, duplicates, refusals, unpaired) and the command guard's.
+//! - the bridge's counters (stamped ahead, out of order, duplicates, refusals, unpaired) and the
+//!   command guard's.
 //!
 //! ```sh
 //! cargo run --release -p demo --example ros2_figures [-- SECONDS [SEED [plane]]]
@@ -151,12 +152,14 @@ fn main() {
     );
     let s = &r.io.state;
     println!(
-        "bridge: {} states from {} poses / {} twists / {} wrenches; out of order {}, duplicates \
-         {}, non-finite {}, impossible jumps {}, unpaired {}, undecodable {}, dropped {}",
+        "bridge: {} states from {} poses / {} twists / {} wrenches; stamped ahead of the clock \
+         {}, out of order {}, duplicates {}, non-finite {}, impossible jumps {}, unpaired {}, \
+         undecodable {}, dropped {}",
         s.samples,
         s.poses,
         s.twists,
         s.wrenches,
+        s.from_future,
         s.out_of_order,
         s.duplicates,
         s.non_finite,

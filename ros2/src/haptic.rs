@@ -80,7 +80,8 @@ use crate::graph::{Graph, GraphError, Qos, TopicName};
 use crate::msg::{Float64MultiArray, MultiArrayLayout};
 use crate::topics::{split_rule, unknown_key};
 
-pub use gate::{DeviceSample, ExpectedFrame, GateConfig, GateCounts, PoseGate, Receipt};
+pub use crate::state::Receipt;
+pub use gate::{DeviceSample, ExpectedFrame, GateConfig, GateCounts, PoseGate};
 
 /// The device's topics.
 #[derive(Clone, Debug, PartialEq, Eq)]

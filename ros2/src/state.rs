@@ -1,6 +1,6 @@
 //! Robot state from three topics: pose, twist and wrench → one [`StateSample`] per pose, timed
 //! by its header stamp. Pure (no DDS, no clock): the I/O thread feeds it messages with their
-//! receipt times.
+//! [`Receipt`]s.
 //!
 //! # Conventions (the one place they are stated)
 //!
@@ -24,6 +24,8 @@
 //!
 //! # Refusals (each counted in [`StateCounts`])
 //! - a stamp with `nanosec ≥ 1e9` (malformed);
+//! - a stamp more than [`StateConfig::max_ahead_ns`] ahead of the receiver's ROS clock (from
+//!   the future: another clock's);
 //! - a stamp not newer than the newest *accepted* one of its stream (out of order, or a
 //!   duplicate);
 //! - a non-finite value anywhere in a pose, twist or wrench, or (for a tool-frame wrench, which
@@ -80,7 +82,18 @@ pub struct StateConfig {
     /// Faster than this between two poses is an impossible jump \[m/s\]. Default 3 m/s:
     /// above any collaborative arm's Cartesian limit (Franka: 1.7 m/s).
     pub max_speed_m_per_s: f64,
+    /// A message stamped more than this ahead of the receiver's ROS clock at receipt is refused
+    /// \[ns\]. Default [`MAX_AHEAD_NS`].
+    pub max_ahead_ns: i64,
 }
+
+/// How far ahead of the receiver's ROS clock a header stamp may be \[ns\]: 1 s. Hosts kept by
+/// NTP agree within milliseconds and a message is in transit for less, so a stamp a second ahead
+/// is another clock's (a stepped or unsynchronised host, a second publisher, a replay); accepted,
+/// it would refuse every correct message of its stream as out of order until the driver's clock
+/// caught up. (A driver host whose clock runs more than 1 s ahead of this one has all its
+/// messages refused, counted as `from_future`: synchronise the clocks.)
+pub const MAX_AHEAD_NS: i64 = 1_000_000_000;
 
 impl Default for StateConfig {
     fn default() -> Self {
@@ -90,6 +103,7 @@ impl Default for StateConfig {
             wrench_sign: WrenchSign::OnTool,
             pair_tolerance_ns: 2_000_000,
             max_speed_m_per_s: 3.0,
+            max_ahead_ns: MAX_AHEAD_NS,
         }
     }
 }
@@ -120,6 +134,9 @@ pub struct StateCounts {
     pub samples: u64,
     /// Messages whose stamp had `nanosec ≥ 1e9`.
     pub malformed_stamps: u64,
+    /// Poses (or twists, wrenches) stamped more than [`StateConfig::max_ahead_ns`] ahead of the
+    /// receiver's ROS clock.
+    pub from_future: u64,
     /// Poses (or twists, wrenches) older than the newest accepted one of their stream.
     pub out_of_order: u64,
     /// Poses (or twists, wrenches) with the same stamp as the newest accepted one of their
@@ -132,6 +149,15 @@ pub struct StateCounts {
     pub impossible_jumps: u64,
     /// Poses with no wrench (or twist) within the pairing tolerance.
     pub unpaired: u64,
+}
+
+/// When a message arrived, on both of the receiver's clocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Receipt {
+    /// The monotonic clock \[ns\]: what staleness is measured on.
+    pub monotonic_ns: i64,
+    /// The ROS clock (system time) \[ns\]: what header stamps are compared with.
+    pub ros_ns: i64,
 }
 
 /// One stream's last two accepted samples (stamp, value).
@@ -192,20 +218,32 @@ pub struct StateAssembler {
     counts: StateCounts,
 }
 
-/// Where a header stamp falls against the newest accepted stamp of its stream (the robot's
-/// state, a haptic device's pose): only a newer stamp is a new sample.
+/// Where a header stamp falls against the receiver's clock and the newest accepted stamp of its
+/// stream (the robot's state, a haptic device's pose): only a newer stamp, not from the future,
+/// is a new sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Arrival {
     /// Newer than the newest (or the first).
     Newer,
+    /// More than the allowed margin ahead of the receiver's ROS clock.
+    FromFuture,
     /// The same stamp again.
     Duplicate,
     /// Older than the newest.
     OutOfOrder,
 }
 
-/// Where `stamp` falls against `newest`.
-pub(crate) fn arrival(newest: Option<i64>, stamp: i64) -> Arrival {
+/// Where `stamp` falls against `newest` and the receiver's ROS clock `ros_now_ns`, a stamp more
+/// than `max_ahead_ns` ahead of which is from the future.
+pub(crate) fn arrival(
+    newest: Option<i64>,
+    stamp: i64,
+    ros_now_ns: i64,
+    max_ahead_ns: i64,
+) -> Arrival {
+    if stamp.saturating_sub(ros_now_ns) > max_ahead_ns {
+        return Arrival::FromFuture;
+    }
     match newest {
         Some(t) if stamp == t => Arrival::Duplicate,
         Some(t) if stamp < t => Arrival::OutOfOrder,
@@ -252,14 +290,14 @@ impl StateAssembler {
         &self.config
     }
 
-    /// A pose arrived at `received_ns`.
-    pub fn on_pose(&mut self, msg: &PoseStamped, received_ns: i64) {
+    /// A pose arrived `at`.
+    pub fn on_pose(&mut self, msg: &PoseStamped, at: Receipt) {
         self.counts.poses += 1;
         let newest = self.last_pose.map(|(t, _)| t);
-        let Some(stamp) = self.check_stamp(msg.header.stamp, newest) else {
+        let Some(stamp) = self.check_stamp(msg.header.stamp, newest, at.ros_ns) else {
             return;
         };
-        let Some(pose) = self.check_pose(msg, stamp, received_ns) else {
+        let Some(pose) = self.check_pose(msg, stamp, at.monotonic_ns) else {
             return;
         };
         // Accepted: only now does its stamp bound the poses after it.
@@ -270,21 +308,24 @@ impl StateAssembler {
         self.try_complete();
     }
 
-    /// A twist arrived.
-    pub fn on_twist(&mut self, msg: &TwistStamped) {
+    /// A twist arrived when the receiver's ROS clock read `ros_now_ns`.
+    pub fn on_twist(&mut self, msg: &TwistStamped, ros_now_ns: i64) {
         self.counts.twists += 1;
         let v = msg.twist.linear.to_array();
-        if let Some(stamp) = self.check_vector(msg.header.stamp, self.twist.newest(), v) {
+        if let Some(stamp) = self.check_vector(msg.header.stamp, self.twist.newest(), v, ros_now_ns)
+        {
             self.twist.push(stamp, v);
             self.try_complete();
         }
     }
 
-    /// A wrench arrived.
-    pub fn on_wrench(&mut self, msg: &WrenchStamped) {
+    /// A wrench arrived when the receiver's ROS clock read `ros_now_ns`.
+    pub fn on_wrench(&mut self, msg: &WrenchStamped, ros_now_ns: i64) {
         self.counts.wrenches += 1;
         let f = msg.wrench.force.to_array();
-        if let Some(stamp) = self.check_vector(msg.header.stamp, self.wrench.newest(), f) {
+        if let Some(stamp) =
+            self.check_vector(msg.header.stamp, self.wrench.newest(), f, ros_now_ns)
+        {
             self.wrench.push(stamp, f);
             self.try_complete();
         }
@@ -304,16 +345,17 @@ impl StateAssembler {
         self.counts
     }
 
-    /// The stamp `t` if it is well-formed and newer than `newest` (the newest accepted of its
-    /// stream); else counted.
-    fn check_stamp(&mut self, t: Time, newest: Option<i64>) -> Option<i64> {
+    /// The stamp `t` if it is well-formed, not from the future and newer than `newest` (the
+    /// newest accepted of its stream); else counted.
+    fn check_stamp(&mut self, t: Time, newest: Option<i64>, ros_now_ns: i64) -> Option<i64> {
         let c = &mut self.counts;
         let Some(stamp) = t.to_nanos() else {
             c.malformed_stamps += 1;
             return None;
         };
-        match arrival(newest, stamp) {
+        match arrival(newest, stamp, ros_now_ns, self.config.max_ahead_ns) {
             Arrival::Newer => return Some(stamp),
+            Arrival::FromFuture => c.from_future += 1,
             Arrival::Duplicate => c.duplicates += 1,
             Arrival::OutOfOrder => c.out_of_order += 1,
         }
@@ -321,8 +363,14 @@ impl StateAssembler {
     }
 
     /// A twist's or wrench's stamp if it and the vector `v` pass; else counted.
-    fn check_vector(&mut self, t: Time, newest: Option<i64>, v: Vec3) -> Option<i64> {
-        let stamp = self.check_stamp(t, newest)?;
+    fn check_vector(
+        &mut self,
+        t: Time,
+        newest: Option<i64>,
+        v: Vec3,
+        ros_now_ns: i64,
+    ) -> Option<i64> {
+        let stamp = self.check_stamp(t, newest, ros_now_ns)?;
         if !vec3::is_finite(v) {
             self.counts.non_finite += 1;
             return None;

@@ -15,7 +15,7 @@ use crate::msg::{
     Bool, Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion, Time, Twist,
     TwistStamped, Vector3, WrenchStamped,
 };
-use crate::state::{StampClock, StateAssembler};
+use crate::state::{Receipt, StampClock, StateAssembler};
 use crate::topics::theta_message;
 
 const POSE: Token = Token(1);
@@ -147,15 +147,19 @@ impl Io {
                 if self.frame_id.is_empty() {
                     self.frame_id.clone_from(&msg.header.frame_id);
                 }
-                self.assembler.on_pose(&msg, rt::monotonic_ns());
+                let at = Receipt {
+                    monotonic_ns: rt::monotonic_ns(),
+                    ros_ns: ros_now_ns(),
+                };
+                self.assembler.on_pose(&msg, at);
             }
             let undecodable = &mut self.report.undecodable;
             if let Some(msg) = graph::take(self.twist.as_ref(), &mut any, undecodable) {
-                self.assembler.on_twist(&msg);
+                self.assembler.on_twist(&msg, ros_now_ns());
             }
             let undecodable = &mut self.report.undecodable;
             if let Some(msg) = graph::take(Some(&self.wrench), &mut any, undecodable) {
-                self.assembler.on_wrench(&msg);
+                self.assembler.on_wrench(&msg, ros_now_ns());
             }
             self.forward_states();
             if !any {

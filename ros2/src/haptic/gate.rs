@@ -28,7 +28,7 @@ use serde::Serialize;
 
 use super::HapticError;
 use crate::msg::{PoseStamped, TwistStamped};
-use crate::state::{Arrival, arrival, within_speed};
+use crate::state::{Arrival, MAX_AHEAD_NS, Receipt, arrival, within_speed};
 
 /// How poses are checked.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -46,11 +46,7 @@ pub struct GateConfig {
     /// How far a twist's stamp may be from the pose's \[ns\]. Default 2 ms: two ticks at 1 kHz.
     pub twist_tolerance_ns: i64,
     /// A pose or twist stamped more than this ahead of the receiver's ROS clock at receipt is
-    /// refused \[ns\]. Default 1 s: hosts kept by NTP agree within milliseconds and a pose is in
-    /// transit for less, so a stamp a second ahead is another clock's (a stepped or unsynchronised
-    /// driver host, a replay); accepted, it would refuse every correct pose as out of order until
-    /// the driver's clock caught up. (A driver host whose clock runs more than 1 s ahead of
-    /// this one has all its poses refused, counted as `from_future`: synchronise the clocks.)
+    /// refused \[ns\]. Default [`MAX_AHEAD_NS`] (1 s; why, there), as for the robot's state.
     pub max_ahead_ns: i64,
 }
 
@@ -61,7 +57,7 @@ impl Default for GateConfig {
             max_radius_m: 1.0,
             velocity_window_ns: 10_000_000,
             twist_tolerance_ns: 2_000_000,
-            max_ahead_ns: 1_000_000_000,
+            max_ahead_ns: MAX_AHEAD_NS,
         }
     }
 }
@@ -111,15 +107,6 @@ impl std::fmt::Display for ExpectedFrame {
             ExpectedFrame::Named(name) => f.write_str(name),
         }
     }
-}
-
-/// When a message arrived, on both of the receiver's clocks.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Receipt {
-    /// The monotonic clock \[ns\]: what staleness is measured on.
-    pub monotonic_ns: i64,
-    /// The ROS clock (system time) \[ns\]: what header stamps are compared with.
-    pub ros_ns: i64,
 }
 
 /// One accepted device sample.
@@ -255,8 +242,8 @@ impl PoseGate {
             return;
         };
         let v = msg.twist.linear.to_array();
-        if self.ahead(stamp, ros_now_ns)
-            || arrival(self.newest_twist, stamp) != Arrival::Newer
+        let max_ahead = self.config.max_ahead_ns;
+        if arrival(self.newest_twist, stamp, ros_now_ns, max_ahead) != Arrival::Newer
             || !vec3::is_finite(v)
         {
             self.counts.twists_refused += 1;
@@ -283,21 +270,18 @@ impl PoseGate {
             self.counts.malformed_stamps += 1;
             return None;
         };
-        if self.ahead(stamp, ros_now_ns) {
-            self.counts.from_future += 1;
-            return None;
-        }
-        match arrival(self.newest_pose, stamp) {
+        match arrival(
+            self.newest_pose,
+            stamp,
+            ros_now_ns,
+            self.config.max_ahead_ns,
+        ) {
+            Arrival::FromFuture => self.counts.from_future += 1,
             Arrival::Duplicate => self.counts.duplicates += 1,
             Arrival::OutOfOrder => self.counts.out_of_order += 1,
             Arrival::Newer => return Some(stamp),
         }
         None
-    }
-
-    /// `stamp` is more than the allowed margin ahead of `ros_now_ns`.
-    fn ahead(&self, stamp: i64, ros_now_ns: i64) -> bool {
-        stamp.saturating_sub(ros_now_ns) > self.config.max_ahead_ns
     }
 
     /// The `k`-th newest accepted pose (0: the newest).

@@ -13,8 +13,9 @@ use transport::Mailbox;
 
 use super::{CommandLen, HapticConfig, HapticError, IoReport, Shared, command_message};
 use crate::graph::{self, Graph, io_error, register, ros_now_ns};
-use crate::haptic::gate::{DeviceSample, PoseGate, Receipt};
+use crate::haptic::gate::{DeviceSample, PoseGate};
 use crate::msg::{Bool, Float64MultiArray, PoseStamped, TwistStamped};
+use crate::state::Receipt;
 
 const POSE: Token = Token(1);
 const TWIST: Token = Token(2);

@@ -2,6 +2,16 @@ use super::*;
 use crate::msg::{Header, Point, Pose as RosPose, Quaternion, Twist, Vector3, Wrench};
 
 const MS: i64 = 1_000_000;
+/// The receiver's ROS clock in the tests that are not about it: 1 s, after every stamp here.
+const NOW: i64 = 1_000 * MS;
+
+/// A receipt at `monotonic_ns`, the ROS clock at [`NOW`].
+fn rx(monotonic_ns: i64) -> Receipt {
+    Receipt {
+        monotonic_ns,
+        ros_ns: NOW,
+    }
+}
 
 fn header(stamp: i64) -> Header {
     Header {
@@ -48,10 +58,10 @@ fn all(a: &mut StateAssembler) -> Vec<StateSample> {
 fn one_sample_per_stamp_once_every_stream_has_it_in_any_arrival_order() {
     let mut a = StateAssembler::new(StateConfig::default());
     // Stamp 1: pose, twist, wrench.
-    a.on_pose(&pose(MS, [0.1, 0.0, 0.01]), 5);
-    a.on_twist(&twist(MS, [0.01, 0.0, 0.0]));
+    a.on_pose(&pose(MS, [0.1, 0.0, 0.01]), rx(5));
+    a.on_twist(&twist(MS, [0.01, 0.0, 0.0]), NOW);
     assert!(a.take().is_none(), "waits for the wrench");
-    a.on_wrench(&wrench(MS, [0.0, 0.0, 1.5]));
+    a.on_wrench(&wrench(MS, [0.0, 0.0, 1.5]), NOW);
     let s = all(&mut a);
     assert_eq!(s.len(), 1);
     assert_eq!(s[0].stamp_ns, MS);
@@ -60,9 +70,9 @@ fn one_sample_per_stamp_once_every_stream_has_it_in_any_arrival_order() {
     assert_eq!(s[0].sample.velocity_m_per_s, [0.01, 0.0, 0.0]);
     assert_eq!(s[0].sample.force_on_tool_n, [0.0, 0.0, 1.5]);
     // Stamp 2: wrench first, then twist, then pose.
-    a.on_wrench(&wrench(2 * MS, [0.0, 0.0, 1.6]));
-    a.on_twist(&twist(2 * MS, [0.02, 0.0, 0.0]));
-    a.on_pose(&pose(2 * MS, [0.10001, 0.0, 0.01]), 6);
+    a.on_wrench(&wrench(2 * MS, [0.0, 0.0, 1.6]), NOW);
+    a.on_twist(&twist(2 * MS, [0.02, 0.0, 0.0]), NOW);
+    a.on_pose(&pose(2 * MS, [0.10001, 0.0, 0.01]), rx(6));
     let s = all(&mut a);
     assert_eq!(s.len(), 1);
     assert_eq!(s[0].sample.force_on_tool_n, [0.0, 0.0, 1.6]);
@@ -77,8 +87,8 @@ fn a_pose_overtaken_is_paired_with_the_nearest_or_refused() {
     });
     // A driver whose wrench stamps lag its pose stamps by 0.3 ms.
     for k in 1..=5 {
-        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
-        a.on_wrench(&wrench(k * MS - 300_000, [0.0, 0.0, k as f64]));
+        a.on_pose(&pose(k * MS, [0.0; 3]), rx(0));
+        a.on_wrench(&wrench(k * MS - 300_000, [0.0, 0.0, k as f64]), NOW);
     }
     let s = all(&mut a);
     // Each pose is emitted when the next arrives, with its nearest wrench.
@@ -88,7 +98,7 @@ fn a_pose_overtaken_is_paired_with_the_nearest_or_refused() {
     }
     // A wrench stream that stopped: poses are refused as unpaired, not paired with old forces.
     for k in 10..=14 {
-        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
+        a.on_pose(&pose(k * MS, [0.0; 3]), rx(0));
     }
     let s = all(&mut a);
     assert_eq!(
@@ -104,9 +114,9 @@ fn a_pose_overtaken_is_paired_with_the_nearest_or_refused() {
 fn out_of_order_duplicates_and_malformed_stamps_are_dropped_and_counted() {
     let mut a = StateAssembler::new(StateConfig::default());
     for k in [1, 2, 2, 1, 3] {
-        a.on_pose(&pose(k * MS, [0.0; 3]), 0);
-        a.on_twist(&twist(k * MS, [0.0; 3]));
-        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+        a.on_pose(&pose(k * MS, [0.0; 3]), rx(0));
+        a.on_twist(&twist(k * MS, [0.0; 3]), NOW);
+        a.on_wrench(&wrench(k * MS, [0.0; 3]), NOW);
     }
     let stamps: Vec<i64> = all(&mut a).iter().map(|s| s.stamp_ns).collect();
     assert_eq!(stamps, [MS, 2 * MS, 3 * MS]);
@@ -114,7 +124,7 @@ fn out_of_order_duplicates_and_malformed_stamps_are_dropped_and_counted() {
     assert_eq!((c.duplicates, c.out_of_order), (3, 3), "{c:?}");
     let mut bad = pose(4 * MS, [0.0; 3]);
     bad.header.stamp.nanosec = 1_000_000_000;
-    a.on_pose(&bad, 0);
+    a.on_pose(&bad, rx(0));
     assert_eq!(a.counts().malformed_stamps, 1);
 }
 
@@ -126,9 +136,9 @@ fn non_finite_values_and_impossible_jumps_are_refused() {
         ..StateConfig::default()
     });
     let step = |a: &mut StateAssembler, k: i64, p: Vec3, v: Vec3, f: Vec3| {
-        a.on_pose(&pose(k * MS, p), 0);
-        a.on_twist(&twist(k * MS, v));
-        a.on_wrench(&wrench(k * MS, f));
+        a.on_pose(&pose(k * MS, p), rx(0));
+        a.on_twist(&twist(k * MS, v), NOW);
+        a.on_wrench(&wrench(k * MS, f), NOW);
         all(a).len()
     };
     assert_eq!(step(&mut a, 1, [0.0; 3], [0.0; 3], [0.0; 3]), 1);
@@ -160,18 +170,18 @@ fn a_refused_pose_stamped_ahead_does_not_stop_the_poses_after_it() {
         ..StateConfig::default()
     });
     let good = |a: &mut StateAssembler, k: i64| {
-        a.on_pose(&pose(k * MS, [0.1, 0.0, 0.0]), k);
-        a.on_twist(&twist(k * MS, [0.0; 3]));
-        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+        a.on_pose(&pose(k * MS, [0.1, 0.0, 0.0]), rx(k));
+        a.on_twist(&twist(k * MS, [0.0; 3]), NOW);
+        a.on_wrench(&wrench(k * MS, [0.0; 3]), NOW);
         all(a).len()
     };
     assert_eq!(good(&mut a, 1), 1);
     // Half a second ahead of the stream (within a second of the clock), each refused.
-    a.on_pose(&pose(500 * MS, [f64::NAN, 0.0, 0.0]), 2);
+    a.on_pose(&pose(500 * MS, [f64::NAN, 0.0, 0.0]), rx(2));
     let mut no_rotation = pose(550 * MS, [0.1, 0.0, 0.0]);
     no_rotation.pose.orientation.w = 0.0;
-    a.on_pose(&no_rotation, 3);
-    a.on_pose(&pose(600 * MS, [5.0, 0.0, 0.0]), 4); // 8 m/s from the last pose
+    a.on_pose(&no_rotation, rx(3));
+    a.on_pose(&pose(600 * MS, [5.0, 0.0, 0.0]), rx(4)); // 8 m/s from the last pose
     for k in 2..=4 {
         assert_eq!(good(&mut a, k), 1, "{:?}", a.counts());
     }
@@ -185,12 +195,12 @@ fn a_refused_pose_stamped_ahead_does_not_stop_the_poses_after_it() {
 #[test]
 fn a_refused_twist_or_wrench_stamped_ahead_does_not_stop_the_states_after_it() {
     let mut a = StateAssembler::new(StateConfig::default());
-    a.on_twist(&twist(500 * MS, [f64::NAN, 0.0, 0.0]));
-    a.on_wrench(&wrench(500 * MS, [0.0, f64::INFINITY, 0.0]));
+    a.on_twist(&twist(500 * MS, [f64::NAN, 0.0, 0.0]), NOW);
+    a.on_wrench(&wrench(500 * MS, [0.0, f64::INFINITY, 0.0]), NOW);
     for k in 1..=3 {
-        a.on_pose(&pose(k * MS, [0.0; 3]), k);
-        a.on_twist(&twist(k * MS, [0.0; 3]));
-        a.on_wrench(&wrench(k * MS, [0.0; 3]));
+        a.on_pose(&pose(k * MS, [0.0; 3]), rx(k));
+        a.on_twist(&twist(k * MS, [0.0; 3]), NOW);
+        a.on_wrench(&wrench(k * MS, [0.0; 3]), NOW);
     }
     let c = a.counts();
     assert_eq!(all(&mut a).len(), 3, "{c:?}");
@@ -201,6 +211,43 @@ fn a_refused_twist_or_wrench_stamped_ahead_does_not_stop_the_states_after_it() {
     );
 }
 
+/// Regression: a pose (twist, wrench) stamped far ahead of the receiver's clock, valid in every
+/// other way, was accepted and made every correct one after it out of order until the driver's
+/// clock caught up.
+#[test]
+fn a_pose_stamped_far_ahead_of_the_clock_is_refused_and_counted() {
+    let mut a = StateAssembler::new(StateConfig::default());
+    // The driver's clock and this host's agree: each message is received 0.2 ms after its stamp.
+    let step = |a: &mut StateAssembler, k: i64, stamp: i64| {
+        let at = Receipt {
+            monotonic_ns: k,
+            ros_ns: k * MS + 200_000,
+        };
+        a.on_pose(&pose(stamp, [0.0; 3]), at);
+        a.on_twist(&twist(stamp, [0.0; 3]), at.ros_ns);
+        a.on_wrench(&wrench(stamp, [0.0; 3]), at.ros_ns);
+        all(a).len()
+    };
+    assert_eq!(step(&mut a, 1, MS), 1);
+    let hour = 3_600_000 * MS;
+    assert_eq!(step(&mut a, 2, hour), 0);
+    for k in 3..=5 {
+        assert_eq!(step(&mut a, k, k * MS), 1, "{:?}", a.counts());
+    }
+    let c = a.counts();
+    assert_eq!((c.from_future, c.out_of_order), (3, 0), "{c:?}");
+    assert_eq!(c.samples, 4, "{c:?}");
+    // Up to the bound is accepted (a clock ahead by less than a second).
+    let mut a = StateAssembler::new(StateConfig::default());
+    let edge = NOW + StateConfig::default().max_ahead_ns;
+    a.on_pose(&pose(edge, [0.0; 3]), rx(0));
+    a.on_pose(&pose(edge + 1, [0.0; 3]), rx(0));
+    a.on_twist(&twist(edge, [0.0; 3]), NOW);
+    a.on_wrench(&wrench(edge, [0.0; 3]), NOW);
+    assert_eq!(all(&mut a).len(), 1);
+    assert_eq!(a.counts().from_future, 1);
+}
+
 #[test]
 fn without_a_twist_the_velocity_is_the_pose_difference() {
     let mut a = StateAssembler::new(StateConfig {
@@ -209,8 +256,8 @@ fn without_a_twist_the_velocity_is_the_pose_difference() {
     });
     for k in 0..5 {
         let t = k * 2 * MS; // a 500 Hz driver
-        a.on_pose(&pose(t, [0.001 * k as f64, 0.0, 0.0]), 0);
-        a.on_wrench(&wrench(t, [0.0; 3]));
+        a.on_pose(&pose(t, [0.001 * k as f64, 0.0, 0.0]), rx(0));
+        a.on_wrench(&wrench(t, [0.0; 3]), NOW);
     }
     let s = all(&mut a);
     assert_eq!(s.len(), 5);
@@ -227,9 +274,9 @@ fn the_wrench_is_the_force_on_the_tool_rotated_and_signed_as_declared() {
         let mut a = StateAssembler::new(config);
         let mut p = pose(MS, [0.0, 0.0, -0.004]);
         p.pose.orientation = orientation;
-        a.on_pose(&p, 0);
-        a.on_twist(&twist(MS, [0.0; 3]));
-        a.on_wrench(&wrench(MS, f));
+        a.on_pose(&p, rx(0));
+        a.on_twist(&twist(MS, [0.0; 3]), NOW);
+        a.on_wrench(&wrench(MS, f), NOW);
         a.take().unwrap().sample.force_on_tool_n
     };
     let base = StateConfig::default();
@@ -267,9 +314,9 @@ fn the_wrench_is_the_force_on_the_tool_rotated_and_signed_as_declared() {
         z: 0.0,
         w: 0.0,
     };
-    a.on_pose(&p, 0);
-    a.on_twist(&twist(MS, [0.0; 3]));
-    a.on_wrench(&wrench(MS, [0.0; 3]));
+    a.on_pose(&p, rx(0));
+    a.on_twist(&twist(MS, [0.0; 3]), NOW);
+    a.on_wrench(&wrench(MS, [0.0; 3]), NOW);
     assert!(a.take().is_none());
     assert_eq!(a.counts().non_finite, 1);
 }
