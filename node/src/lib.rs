@@ -29,6 +29,7 @@
 //! crate is one [`RobotBridge`]), no numerics of its own (`mmt`'s).
 
 mod bridge;
+mod continuity;
 pub mod guard;
 mod history;
 mod observer;

@@ -24,6 +24,7 @@ use protocol::Header;
 use protocol::telerobot_to_operator::{self as wire, AxisState, Datagram};
 
 use crate::bridge::{RobotSample, Target};
+use crate::continuity::Continuity;
 use crate::observer::Observer;
 use crate::playout::{Playout, Push};
 use crate::settings::TelerobotSettings;
@@ -59,6 +60,16 @@ pub struct TelerobotStats {
     /// transient after.
     #[serde(default)]
     pub stopped_ticks: u64,
+    /// Breaks of the playout's path (a snap onto a late command, a stop at the end of the
+    /// extrapolation) absorbed into an offset that decays smoothly ([`crate::continuity`]).
+    #[serde(default)]
+    pub path_breaks: u64,
+    /// Of them, too large to blend (beyond 5 mm or 0.5 m/s): passed on for the motion guard.
+    #[serde(default)]
+    pub unblended_breaks: u64,
+    /// Ticks the robot was told the path plus such an offset.
+    #[serde(default)]
+    pub blended_ticks: u64,
     /// Commands accepted.
     pub commands: u64,
     /// Commands dropped: duplicates, older than the one executing, or not finite.
@@ -87,6 +98,7 @@ pub struct TelerobotNode {
     tangential: Option<Estimator>,
     observer: [Observer; 2],
     playout: Playout,
+    continuity: Continuity,
     hold_position: Option<[f64; 3]>,
     out: Vec<Datagram>,
     model_id: u32,
@@ -125,6 +137,7 @@ impl TelerobotNode {
             tangential: estimator(&settings.tangential)?,
             observer: [Observer::default(); 2],
             playout: Playout::new(),
+            continuity: Continuity::default(),
             hold_position: None,
             out: Vec::with_capacity(8),
             model_id: 0,
@@ -198,9 +211,15 @@ impl TelerobotNode {
         match current {
             Some(c) if fresh => {
                 self.hold_position = None;
+                let (position_m, velocity_m_per_s) =
+                    self.continuity
+                        .pass(now_ns, c.position_m, c.velocity_m_per_s);
+                self.stats.path_breaks = self.continuity.breaks;
+                self.stats.unblended_breaks = self.continuity.passed_breaks;
+                self.stats.blended_ticks = self.continuity.blended_ticks;
                 Target {
-                    position_m: c.position_m,
-                    velocity_m_per_s: c.velocity_m_per_s,
+                    position_m,
+                    velocity_m_per_s,
                     command_sample_time_ns: c.sample_time_ns,
                     holding: false,
                 }
@@ -208,6 +227,7 @@ impl TelerobotNode {
             c => {
                 self.stats.holding_ticks += 1;
                 let hold = *self.hold_position.get_or_insert(robot_position_m);
+                self.continuity.hold(now_ns, hold);
                 Target {
                     position_m: hold,
                     velocity_m_per_s: [0.0; 3],
