@@ -11,15 +11,18 @@
 //! So a break is absorbed into an offset, `e` (with its rate `ė`), that the output carries on top
 //! of the playout's path and that decays as a critically damped second-order system,
 //! `ë + 2ωė + ω²e = 0`: the output goes on from where it was, at the velocity it had, and joins
-//! the path within about `5/ω` (100 ms), its acceleration bounded by the break's size. A break is
+//! the path within about `5/ω` (35 ms), its acceleration bounded by the break's size. Faster is
+//! harsher on the arm; slower made the telerobot lag: with ω = 50 the end-to-end delay measured
+//! over loopback rose by 5–15 ms on this loaded machine (the output was in a blend a third of the
+//! time); at 150 it is within the delay tests' 5 ms. A break is
 //! a step away from where the output's own velocity leads (beyond what [`MAX_ACCEL`] explains in
 //! one tick), or a step in velocity beyond that acceleration. While no break has happened the
 //! path passes through bit for bit.
 
 use mmt::vec3;
 
-/// The offset's decay rate ω \[rad/s\]: a time constant of 20 ms.
-const OMEGA: f64 = 50.0;
+/// The offset's decay rate ω \[rad/s\]: a time constant of 6.7 ms.
+const OMEGA: f64 = 150.0;
 /// The largest acceleration a smooth path has \[m/s²\]: three times the exp-1 multisine's peak
 /// (about 6 m/s²); a human hand's stays below it at 1 kHz sampling. Anything more is a break.
 const MAX_ACCEL: f64 = 30.0;
@@ -137,10 +140,7 @@ mod tests {
 
     /// Runs `path(t)` (position, velocity at `t` seconds) through a fresh pass at 1 kHz for
     /// `ticks`; returns the outputs and the pass.
-    fn run(
-        ticks: i64,
-        path: impl Fn(f64) -> State,
-    ) -> (Vec<State>, Continuity) {
+    fn run(ticks: i64, path: impl Fn(f64) -> State) -> (Vec<State>, Continuity) {
         let mut c = Continuity::default();
         let out = (0..ticks)
             .map(|k| {
@@ -194,8 +194,9 @@ mod tests {
             );
             largest_accel = largest_accel.max((dv / 1e-3).abs());
         }
-        // Bounded by ω²·|e₀| + 2ω·|ė₀| (0.33 + 2.3 m/s²), far below the snap's 23 m/s² in a tick.
-        assert!(largest_accel < 3.0, "{largest_accel} m/s²");
+        // Bounded by ω²·|e₀| + 2ω·|ė₀| (2.9 + 6.9 m/s²), against the snap's 130 m/s² (0.13 mm
+        // in one tick).
+        assert!(largest_accel < 10.0, "{largest_accel} m/s²");
         // Joined within 200 ms: the offset is gone, the path passes through again.
         let last = out[299];
         assert_eq!(last, path(0.299));
@@ -216,7 +217,7 @@ mod tests {
         assert_eq!(c.breaks, 1);
         let stop = 0.25 * 0.010;
         let overshoot = out.iter().map(|o| o.0[0] - stop).fold(0.0, f64::max);
-        // e peaks at ė₀/(ω·e) = 0.25/(50·2.718) = 1.84 mm.
+        // e peaks at ė₀/(ω·e) = 0.25/(150·2.718) = 0.61 mm.
         assert!(
             (overshoot - 0.25 / (OMEGA * std::f64::consts::E)).abs() < 5e-5,
             "{overshoot}"
