@@ -14,7 +14,8 @@
 //! ```
 //! Each run takes SECONDS (default 60) of wall time plus a few seconds of start-up. The ROS 2
 //! run's cloud comes from the arm's camera over PointCloud2 (`[cloud] source = "ros2"`);
-//! `plane` keeps the telerobot's simulated camera instead.
+//! `plane` keeps the telerobot's simulated camera instead. With `ROS2_FIGURES_RECORD=FILE.mcap`
+//! in the environment the ROS 2 run is recorded (its resets are on `/telerobot/tick`).
 
 #![allow(clippy::unwrap_used)]
 
@@ -92,8 +93,17 @@ fn main() {
         },
     )
     .unwrap();
+    let recorder = std::env::var_os("ROS2_FIGURES_RECORD").and_then(|path| {
+        record::cli::RecordArgs {
+            record: Some(path.into()),
+            live: None,
+        }
+        .start(record::Kind::Demo, rt::monotonic_ns())
+        .unwrap()
+    });
     let ros = run_demo(
         &DemoConfig {
+            record: recorder.as_ref().map(record::Recorder::sink),
             robot: RobotConfig::Ros2 {
                 graph: graph.clone(),
                 bridge: Box::new(BridgeConfig {
@@ -108,6 +118,9 @@ fn main() {
     )
     .unwrap();
     let arm = arm.stop();
+    if let Some(r) = recorder {
+        r.finish().unwrap();
+    }
 
     let row = |name: &str, o: &demo::Outcome| {
         let e = &o.report.run.experiment;
