@@ -46,7 +46,7 @@ pub(super) struct Continuity {
     /// Breaks of the path.
     pub(super) breaks: u64,
     /// Of them, too large to blend ([`LARGEST_BREAK`]).
-    pub(super) passed_breaks: u64,
+    pub(super) unblended_breaks: u64,
     /// Ticks handed on with an offset.
     pub(super) blended_ticks: u64,
 }
@@ -80,7 +80,7 @@ impl Continuity {
             let led = vec3::add(q0, vec3::scale(u0, dt));
             let (e, de) = (vec3::sub(led, position), vec3::sub(u0, velocity));
             if vec3::norm(e) > LARGEST_BREAK.0 || vec3::norm(de) > LARGEST_BREAK.1 {
-                self.passed_breaks += 1;
+                self.unblended_breaks += 1;
                 ([0.0; 3], [0.0; 3])
             } else {
                 (e, de)
@@ -252,10 +252,10 @@ mod tests {
         c.hold(MS, [0.0; 3]);
         let far = ([0.3, 0.0, 0.0], [0.0; 3]);
         assert_eq!(c.pass(2 * MS, far.0, far.1), far);
-        assert_eq!((c.breaks, c.passed_breaks, c.blended_ticks), (1, 1, 0));
+        assert_eq!((c.breaks, c.unblended_breaks, c.blended_ticks), (1, 1, 0));
         // From rest, a stop from 0.6 m/s is too fast a break too.
         c.pass(3 * MS, [0.3006, 0.0, 0.0], [0.6, 0.0, 0.0]);
-        assert_eq!((c.breaks, c.passed_breaks), (2, 2));
+        assert_eq!((c.breaks, c.unblended_breaks), (2, 2));
     }
 
     #[test]

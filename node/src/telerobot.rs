@@ -214,9 +214,6 @@ impl TelerobotNode {
                 let (position_m, velocity_m_per_s) =
                     self.continuity
                         .pass(now_ns, c.position_m, c.velocity_m_per_s);
-                self.stats.path_breaks = self.continuity.breaks;
-                self.stats.unblended_breaks = self.continuity.passed_breaks;
-                self.stats.blended_ticks = self.continuity.blended_ticks;
                 Target {
                     position_m,
                     velocity_m_per_s,
@@ -488,7 +485,13 @@ impl TelerobotNode {
 
     /// Counters.
     pub fn stats(&self) -> TelerobotStats {
-        self.stats
+        let c = &self.continuity;
+        TelerobotStats {
+            path_breaks: c.breaks,
+            unblended_breaks: c.unblended_breaks,
+            blended_ticks: c.blended_ticks,
+            ..self.stats
+        }
     }
 
     /// Estimator counters: (normal, tangential).
