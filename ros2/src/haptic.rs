@@ -452,7 +452,8 @@ impl RosHaptic {
 
     /// Publishes zero and stops the I/O thread (blocking, about 100 ms: not for the loop):
     /// from here the counts are final, [`RosHaptic::report`] gives every command published, the
-    /// closing zero included, and the device reads and writes nothing. Dropping closes it too.
+    /// closing zero included, and nothing more is published (a pose already taken in may still
+    /// be read until it is stale). Dropping closes it too.
     pub fn close(&mut self) {
         self.shared.forces_on.store(false, Relaxed);
         self.shared.stop.store(true, Relaxed);

@@ -200,6 +200,8 @@ struct PendingPose {
     received_ns: i64,
     position: Vec3,
     orientation: [f64; 4],
+    /// The orientation's rotation, when a tool-frame wrench needs it (checked on arrival).
+    rotation: Option<Pose>,
 }
 
 /// The assembler. See the module docs.
@@ -391,8 +393,12 @@ impl StateAssembler {
         let orientation = [o.x, o.y, o.z, o.w];
         let finite = vec3::is_finite(position) && orientation.iter().all(|c| c.is_finite());
         // The orientation matters only to rotate a tool-frame wrench.
+        let rotation = match self.config.wrench_frame {
+            WrenchFrame::Tool if finite => rotation(orientation),
+            _ => None,
+        };
         let rotation_needed = self.config.wrench_frame == WrenchFrame::Tool;
-        if !finite || (rotation_needed && rotation(orientation).is_none()) {
+        if !finite || (rotation_needed && rotation.is_none()) {
             self.counts.non_finite += 1;
             return None;
         }
@@ -406,6 +412,7 @@ impl StateAssembler {
             received_ns,
             position,
             orientation,
+            rotation,
         })
     }
 
@@ -435,7 +442,7 @@ impl StateAssembler {
         };
         let force = match self.config.wrench_frame {
             WrenchFrame::Base => force,
-            WrenchFrame::Tool => rotation(p.orientation).map_or(force, |r| r.rotate(force)),
+            WrenchFrame::Tool => p.rotation.map_or(force, |r| r.rotate(force)),
         };
         let force = match self.config.wrench_sign {
             WrenchSign::OnTool => force,

@@ -60,8 +60,8 @@ pub struct RosBackend {
     io: RosHaptic,
     capabilities: DeviceCapabilities,
     pose_topic: Arc<str>,
-    /// [`HapticConfig::stale_after`] \[ns\].
-    stale_after_ns: i64,
+    /// [`HapticConfig::stale_after`].
+    stale_after: Duration,
     /// The newest sample taken.
     latest: Option<DeviceSample>,
 }
@@ -84,8 +84,7 @@ impl RosBackend {
             pose_topic: Arc::from(io.pose_topic()),
             io,
             capabilities,
-            stale_after_ns: i64::try_from(options.device.stale_after.as_nanos())
-                .unwrap_or(i64::MAX),
+            stale_after: options.device.stale_after,
             latest: None,
         })
     }
@@ -101,14 +100,15 @@ impl Backend for RosBackend {
             self.latest = Some(s);
         }
         // Open waited for a pose: none is a pose that never arrived (infinitely old).
-        let age_ns = self.latest.map_or(i64::MAX, |s| {
-            rt::monotonic_ns().saturating_sub(s.received_ns)
+        let age = self.latest.map_or(Duration::MAX, |s| {
+            let age_ns = rt::monotonic_ns().saturating_sub(s.received_ns);
+            Duration::from_nanos(u64::try_from(age_ns).unwrap_or(0))
         });
-        let Some(s) = self.latest.filter(|_| age_ns <= self.stale_after_ns) else {
+        let Some(s) = self.latest.filter(|_| age <= self.stale_after) else {
             return Err(DeviceError::StalePose {
                 topic: Arc::clone(&self.pose_topic),
-                age: Duration::from_nanos(u64::try_from(age_ns).unwrap_or(0)),
-                limit: Duration::from_nanos(u64::try_from(self.stale_after_ns).unwrap_or(0)),
+                age,
+                limit: self.stale_after,
             });
         };
         Ok(DeviceReading {

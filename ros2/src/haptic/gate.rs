@@ -164,7 +164,6 @@ pub struct PoseGate {
     /// The first refused frame, for the report.
     other_frame: Option<String>,
     twist: bool,
-    newest_pose: Option<i64>,
     newest_twist: Option<i64>,
     /// The last two accepted twists, newest first: (stamp, linear velocity).
     twists: [Option<(i64, Vec3)>; 2],
@@ -183,7 +182,6 @@ impl PoseGate {
             frame,
             other_frame: None,
             twist,
-            newest_pose: None,
             newest_twist: None,
             twists: [None; 2],
             history: [(0, vec3::ZERO); HISTORY],
@@ -220,7 +218,6 @@ impl PoseGate {
             return None;
         }
         let velocity = self.velocity(stamp, position);
-        self.newest_pose = Some(stamp);
         self.history[self.next] = (stamp, position);
         self.next = (self.next + 1) % HISTORY;
         self.len = (self.len + 1).min(HISTORY);
@@ -270,8 +267,9 @@ impl PoseGate {
             self.counts.malformed_stamps += 1;
             return None;
         };
+        // The newest accepted pose is the history's newest: a stamp counts once its pose does.
         match arrival(
-            self.newest_pose,
+            self.last().map(|(t, _)| t),
             stamp,
             ros_now_ns,
             self.config.max_ahead_ns,
