@@ -291,7 +291,8 @@ fn decode_with(
     read_xyz: impl Fn(&[u8]) -> Option<[f64; 3]>,
 ) -> DecodeCounts {
     // Every point is written at `kept`, which moves on only for a point kept: no branch per
-    // point, and `out` sized once (only its growth beyond the last frame is filled).
+    // point. `out` keeps its capacity between frames (no allocation once it has grown), but
+    // `resize` writes the frame's length past the last frame's kept points each time.
     out.resize(layout.len(), [0.0; 3]);
     let mut kept = 0;
     let mut non_finite = 0;

@@ -26,8 +26,10 @@
 use super::{VoxelError, initial_voxel, radix, voxel_downsample};
 
 /// [`voxel_downsample`] with buffers kept between calls, for a camera stream. The output is the
-/// same, bit for bit: centroids summed in `f64` in input order, ordered by voxel index. Allocates
-/// only while its buffers grow to the largest frame seen.
+/// same, bit for bit: centroids summed in `f64` in input order, ordered by voxel index. The dense
+/// and sorted ways allocate only while their buffers grow to the largest frame seen; a frame
+/// neither fits (too sparse a box for the slots, too many voxels for the sort's key) takes
+/// [`voxel_downsample`] itself, which allocates its output each time.
 #[derive(Debug, Default)]
 pub struct VoxelGrid {
     /// Dense: per voxel of the box, its number (in the order of first points), or [`EMPTY`].

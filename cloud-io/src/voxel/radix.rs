@@ -61,7 +61,7 @@ fn counting_pass(src: &[u64], dst: &mut [u64], counts: &mut Vec<u32>, digit: Dig
         let start = (s * quarter).min(src.len());
         &src[start..(start + quarter).min(src.len())]
     });
-    // Counts a u32: `src` holds at most 2^32 − 1 words (`VoxelGrid::downsample_within`).
+    // Counts a u32: `src` holds at most 2^32 − 1 words (`VoxelGrid::group` sorts no more).
     counts.clear();
     counts.resize(STREAMS * buckets, 0);
     in_step(streams, |s, w| counts[s * buckets + digit.of(w)] += 1);

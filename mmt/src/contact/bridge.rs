@@ -29,7 +29,8 @@
 //! over `2 r3` (`proxy.rs`): a patch of several centimetres is surrounded at that scale, an
 //! edge still is not.
 //!
-//! Points standing more than [`OBSTACLE_OF_RESIDUAL`] standard deviations of the fit above the plane are not noise on it but
+//! Points standing more than [`OBSTACLE_OF_RESIDUAL`] standard deviations of the fit above the
+//! plane, that height held to [`OBSTACLE_BANDS`] of the band (half a band for a perfect fit), are not noise on it but
 //! something on the surface (a cable, a step, a box on the table): they stay obstacles the proxy
 //! touches as points. Neither they nor points as far below the plane (the table past the edge
 //! of a board lying on it) count toward surrounding the foot. Where the points are not a plane within the band
@@ -101,7 +102,8 @@ pub(crate) struct BridgePlane {
     /// (the normal is oriented toward the position); negative once the proxy keeps the side it
     /// was touching from (`proxy.rs`).
     pub height_m: f64,
-    /// Points higher than this above the plane are obstacles [m] ([`OBSTACLE_OF_RESIDUAL`] standard deviations of the fit).
+    /// Points higher than this above the plane are obstacles [m] ([`OBSTACLE_OF_RESIDUAL`]
+    /// standard deviations of the fit, held to [`OBSTACLE_BANDS`] of the band).
     pub obstacle_above_m: f64,
     /// Squared distance [m²] from the position to the nearest obstacle (∞ without one).
     pub obstacle_d2: f64,
@@ -174,7 +176,8 @@ impl BridgePlane {
 /// The plane `fit` if it bridges the points within `support_m` of `centre`: planar within
 /// [`MAX_RESIDUAL_OF_BAND`] of `band_m`, at least [`MIN_POINTS`] effective points, and the points surrounding the foot of
 /// `centre` on the plane (no empty sector of about [`MAX_GAP_DEG`] or more). Points standing
-/// more than [`OBSTACLE_OF_RESIDUAL`] standard deviations of the fit above the plane are obstacles, counted apart; neither
+/// more than [`OBSTACLE_OF_RESIDUAL`] standard deviations of the fit (held to [`OBSTACLE_BANDS`]
+/// of the band) above the plane are obstacles, counted apart; neither
 /// they nor points as far below it are part of what surrounds the foot.
 pub(crate) fn bridge(
     centre: Vec3,

@@ -461,9 +461,10 @@ impl Scratch {
     /// afterwards the buffer holds every point within `r3` of `at`. The surface point costs a
     /// pass of its own: asked for only where it is reported.
     ///
-    /// Where the points within `r3` do not bridge (an edge, or a hole too wide for `r3`), the
-    /// plane is fitted once more over [`WIDE_OF_R3`]` · r3`: a hole of several centimetres is
-    /// surrounded at that scale, an edge is not ([`super::bridge`]).
+    /// Where the points within `r3` are planar but do not surround the foot (an edge, or a hole
+    /// too wide for `r3`), the plane is fitted once more over [`WIDE_OF_R3`]` · r3`: a hole of
+    /// several centimetres is surrounded at that scale, an edge is not ([`super::bridge`]).
+    /// Points that are not planar within `r3` are not fitted wider.
     fn surface_at<N: Neighbours>(
         &mut self,
         cloud: &N,

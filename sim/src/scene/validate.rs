@@ -37,6 +37,9 @@ pub enum SceneError {
     },
 }
 
+/// Points the simulated plane keeps within `r3` of the proxy after dropout and holes (the error
+/// messages here and in `budget.rs` say 48 in words).
+const PLANE_POINTS_IN_R3: f64 = 48.0;
 impl SceneError {
     pub(super) fn with_origin(self, origin: &str) -> SceneError {
         match self {
@@ -390,8 +393,8 @@ impl Scene {
 
     /// The largest grid spacing of the simulated plane [m]: below `√2·(r1 + r2)/2`, so the
     /// proxy's sphere cannot pass between the points of a full grid (at the window's edge,
-    /// where no plane bridges them: `ProxyConfig::max_point_spacing_m`), and with 48 points
-    /// within `r3` after dropout and holes, the support the bridging plane needs
+    /// where no plane bridges them: `ProxyConfig::max_point_spacing_m`), and with
+    /// [`PLANE_POINTS_IN_R3`] points within `r3` after dropout and holes, the support the bridging plane needs
     /// (`mmt::contact::bridge`: about a quarter of the points in `r3` count as effective points,
     /// 35–40 of ~140 on the exp-1 plane, and it needs 12). Noise no longer narrows it: where the
     /// plane bridges the points, the proxy rests on the fit, not on the noisiest point (the
@@ -401,7 +404,7 @@ impl Scene {
         let c = &self.cloud;
         let proxy = self.proxy.config(self.rates.control_hz);
         let kept = (1.0 - c.dropout) * (1.0 - c.holes);
-        let support = self.proxy.r3_m * (std::f64::consts::PI * kept / 48.0).sqrt();
+        let support = self.proxy.r3_m * (std::f64::consts::PI * kept / PLANE_POINTS_IN_R3).sqrt();
         proxy.max_point_spacing_m().min(support)
     }
 
