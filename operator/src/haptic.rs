@@ -187,7 +187,12 @@ impl HapticLoop {
     }
 
     fn tick(&mut self, tick: Tick, state: &mut State) {
-        let now = tick.deadline_ns;
+        // The tick's time is when it ran, not its deadline: the device is read now, and a command
+        // must carry the time its position was read. After a stall the loop catches up several
+        // ticks within microseconds; stamped with their deadlines, they would give the telerobot
+        // a path that holds for the stall and then jumps (its estimator took that for a new
+        // object), though the hand moved smoothly.
+        let now = tick.started_ns;
         let actual =
             Duration::from_nanos(u64::try_from(tick.started_ns - state.start_ns).unwrap_or(0));
         if let Some((session, node)) = self.exchange.spare.take()
