@@ -228,7 +228,7 @@ impl OperatorNode {
         .ok()
         .and_then(|f| CloudIndex::build(&f).ok());
         match built {
-            Some(index) => self.set_cloud(Arc::new(index)),
+            Some(index) => drop(self.set_cloud(Arc::new(index))),
             None => self.stats.rejected_clouds += 1,
         }
     }
@@ -236,10 +236,13 @@ impl OperatorNode {
     /// Installs an already built cloud index (built off the haptic thread, or shared).
     /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is denser
     /// than any before), so that no proxy step allocates.
-    pub fn set_cloud(&mut self, index: Arc<CloudIndex>) {
+    ///
+    /// Returns the index it replaces: a real-time caller hands it back to be dropped off its
+    /// thread (it may hold the last reference, and dropping that frees the whole index).
+    pub fn set_cloud(&mut self, index: Arc<CloudIndex>) -> Option<Arc<CloudIndex>> {
         self.proxy.prepare(index.as_ref());
-        self.cloud = Some(index);
         self.stats.clouds += 1;
+        self.cloud.replace(index)
     }
 
     fn on_parameters(&mut self, p: &wire::Parameters) {

@@ -418,10 +418,13 @@ impl TelerobotNode {
     /// was sent with.
     /// Reserves the proxy's neighbour buffer for it (an allocation only when this cloud is
     /// denser than any before), so that no proxy step allocates.
-    pub fn set_cloud(&mut self, index: Arc<CloudIndex>, frame_id: u64) {
+    ///
+    /// Returns the index it replaces: a real-time caller hands it back to be dropped off its
+    /// thread (it may hold the last reference, and dropping that frees the whole index).
+    pub fn set_cloud(&mut self, index: Arc<CloudIndex>, frame_id: u64) -> Option<Arc<CloudIndex>> {
         self.proxy.prepare(index.as_ref());
-        self.cloud = Some(index);
         self.frame_id = frame_id;
+        self.cloud.replace(index)
     }
 
     /// Takes over, for a new session on the same robot, what `previous` knew of the geometry:

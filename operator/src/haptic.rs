@@ -38,6 +38,11 @@ use mmt::vec3::Vec3;
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;
 
+/// Cloud indices the loop may retire between two helper rounds. The helper drains them before
+/// it hands over a cloud, one a round, so the loop retires at most two (the one replaced and one
+/// of an old session) in between; a push into a full queue would drop, and free, on the loop.
+const RETIRED_CLOUDS: usize = 8;
+
 /// What one tick did, for the report and the recording (by tick number). Plain values: pushing
 /// one allocates nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -89,6 +94,9 @@ pub struct Exchange {
     pub spare: Mailbox<(u64, Box<OperatorNode>)>,
     /// Loop → helper: nodes replaced, to drop.
     pub retired: Mailbox<Box<OperatorNode>>,
+    /// Loop → helper: cloud indices replaced (or of an old session), to drop: the loop may hold
+    /// an index's last reference, and dropping that frees it.
+    pub retired_clouds: Mailbox<Arc<CloudIndex>>,
     /// Loop → helper: one record per tick.
     pub ticks: Mailbox<TickRecord>,
 }
@@ -99,6 +107,7 @@ impl Default for Exchange {
             clouds: Mailbox::latest(),
             spare: Mailbox::latest(),
             retired: Mailbox::new(4),
+            retired_clouds: Mailbox::new(RETIRED_CLOUDS),
             ticks: Mailbox::new(TICK_QUEUE),
         }
     }
@@ -195,14 +204,17 @@ impl HapticLoop {
         let now = tick.started_ns;
         let actual =
             Duration::from_nanos(u64::try_from(tick.started_ns - state.start_ns).unwrap_or(0));
-        if let Some((session, node)) = self.exchange.spare.take()
-            && session > self.session
-        {
-            let old = std::mem::replace(&mut self.node, node);
-            self.exchange.retired.push(old);
-            self.session = session;
-            state.last_params_ns = None;
-            state.sessions += 1;
+        if let Some((session, node)) = self.exchange.spare.take() {
+            if session > self.session {
+                let old = std::mem::replace(&mut self.node, node);
+                self.exchange.retired.push(old);
+                self.session = session;
+                state.last_params_ns = None;
+                state.sessions += 1;
+            } else {
+                // Dropped by the helper, like every node the loop lets go.
+                self.exchange.retired.push(node);
+            }
         }
         let mut record = TickRecord {
             index: tick.index,
@@ -212,11 +224,7 @@ impl HapticLoop {
             ..TickRecord::default()
         };
         self.take_messages(now, state, &mut record);
-        if let Some((session, index)) = self.exchange.clouds.take()
-            && session == self.session
-        {
-            self.node.set_cloud(index);
-        }
+        install_cloud(&self.exchange, &mut self.node, self.session);
         let Sample {
             measured_cp: measured,
             measured_cv,
@@ -312,6 +320,23 @@ pub(crate) fn sample_device(
 /// parameters there is none, and nothing to be stale). Rendering without a known arrival time
 /// cannot happen (the node renders only after parameters this loop handed it) and counts as
 /// stale.
+/// Installs the helper's newest cloud index, if one came for this `session`; the index it
+/// replaces, or one of an old session, goes back to the helper to be dropped: the loop may hold
+/// its last reference, and dropping that would free a kd-tree on the loop.
+fn install_cloud(exchange: &Exchange, node: &mut OperatorNode, session: u64) {
+    let Some((from, index)) = exchange.clouds.take() else {
+        return;
+    };
+    let done = if from == session {
+        node.set_cloud(index)
+    } else {
+        Some(index)
+    };
+    if let Some(done) = done {
+        exchange.retired_clouds.push(done);
+    }
+}
+
 fn model_age(rendering: bool, last_params_ns: Option<i64>, now_ns: i64) -> Model {
     if !rendering {
         return Model::None;
@@ -426,6 +451,56 @@ mod tests {
         assert_eq!(vx, [0.1, 0.0, 0.0, 0.1]);
         let t = safety.stats().non_finite_velocity;
         assert_eq!((t.episodes, t.ticks), (1, 2));
+    }
+
+    /// A plane of points at z = 0 over ±`half` mm, 1 mm apart, indexed.
+    fn plane(half: i16) -> Arc<CloudIndex> {
+        let points = (-half..=half)
+            .flat_map(|i| {
+                (-half..=half).map(move |j| [f32::from(i) * 1e-3, f32::from(j) * 1e-3, 0.0])
+            })
+            .collect();
+        let frame = mmt::cloud::CloudFrame::new(points, 0, mmt::cloud::Pose::IDENTITY).unwrap();
+        Arc::new(CloudIndex::build(&frame).unwrap())
+    }
+
+    /// CI (stop 27): the loop freed cloud indices while recording. The helper kept the last four
+    /// alive, but when four more came while the loop held one (a stalled loop, or a burst after
+    /// a stalled helper), the loop's next install dropped that one's last reference. Now every
+    /// index the loop lets go reaches the helper, whoever else still holds it.
+    #[test]
+    fn the_loop_hands_back_every_cloud_index_it_lets_go() {
+        let summary = sim::scene::Scene::exp1().summary();
+        let settings = node::OperatorSettings::from_welcome(&summary).unwrap();
+        let mut node = OperatorNode::new(
+            settings,
+            node::operator::OperatorConfig::default(),
+            [0.0; 3],
+        )
+        .unwrap();
+        let exchange = Exchange::default();
+        let send = |session, half| {
+            let index = plane(half);
+            let weak = Arc::downgrade(&index);
+            exchange.clouds.push((session, index));
+            weak
+        };
+        let first = send(1, 10);
+        install_cloud(&exchange, &mut node, 1);
+        assert!(exchange.retired_clouds.is_empty());
+        // The helper's only reference went with the hand-over: the node holds the last one.
+        assert_eq!(first.strong_count(), 1);
+        let second = send(1, 11);
+        install_cloud(&exchange, &mut node, 1);
+        let old_session = send(0, 12);
+        install_cloud(&exchange, &mut node, 1);
+        // Neither was dropped on the loop: both wait for the helper, which drops them.
+        assert_eq!(exchange.retired_clouds.len(), 2);
+        assert_eq!((first.strong_count(), old_session.strong_count()), (1, 1));
+        assert_eq!(second.strong_count(), 1, "the node renders the newest");
+        while exchange.retired_clouds.take().is_some() {}
+        assert_eq!((first.strong_count(), old_session.strong_count()), (0, 0));
+        assert_eq!(node.stats().clouds, 2);
     }
 
     #[test]

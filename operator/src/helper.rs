@@ -5,7 +5,8 @@
 //!   `Welcome`'s proxy radii, loop rate and cloud rate: a peer's frame the proxy could not step
 //!   on at the loop rate is voxel-downsampled, or refused when only a voxel the proxy slips
 //!   through would fit; counted in the report, logged once), builds its kd-tree and hands the
-//!   loop an `Arc` of it (keeping the last few alive itself, so the loop never frees one);
+//!   loop an `Arc` of it; drops the indices the loop replaced (the loop may hold the last
+//!   reference of one, and never frees it itself);
 //! - on a new session (a reconnect) builds a fresh operator node from the new `Welcome` and hands
 //!   it to the loop; drops the nodes the loop retired;
 //! - drains the loop's tick records and the telerobot's measurements into the recording the
@@ -21,7 +22,6 @@
 //!   batch per round, and keeps at most the tap's `keep_ticks` in the recording: memory stays
 //!   flat however long the run.
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -46,8 +46,6 @@ use protocol::telerobot_to_operator::SceneSummary;
 
 /// How often the helper wakes.
 const POLL: Duration = Duration::from_millis(2);
-/// Cloud indices kept alive here.
-const KEEP: usize = 4;
 /// Most ticks recorded: one hour at 1 kHz (about 200 MB); the report covers the first hour.
 pub const MAX_RECORDED_TICKS: usize = 3_600_000;
 /// How often the link statistics go to the recording.
@@ -199,7 +197,6 @@ pub fn spawn(
                 exchange,
                 session,
                 config,
-                kept: VecDeque::with_capacity(KEEP + 1),
                 recording: Recording::default(),
                 record: record.map(|sink| Forward {
                     sink,
@@ -231,7 +228,6 @@ struct Helper {
     exchange: Arc<Exchange>,
     session: u64,
     config: OperatorConfig,
-    kept: VecDeque<Arc<CloudIndex>>,
     recording: Recording,
     record: Option<Forward>,
     /// The commanded position of the last tick (where a reconnection's node starts).
@@ -334,6 +330,8 @@ impl AbWindow {
 
 impl Helper {
     fn round(&mut self) {
+        // Dropped here, before a new cloud goes to the loop: the loop never frees an index.
+        while self.exchange.retired_clouds.take().is_some() {}
         self.cloud();
         self.sessions();
         while self.exchange.retired.take().is_some() {}
@@ -436,12 +434,9 @@ impl Helper {
             .and_then(|frame| CloudIndex::build(&frame).ok());
         match index {
             Some(index) => {
-                let index = Arc::new(index);
-                self.kept.push_back(Arc::clone(&index));
-                if self.kept.len() > KEEP {
-                    self.kept.pop_front();
-                }
-                self.exchange.clouds.push((received.session, index));
+                self.exchange
+                    .clouds
+                    .push((received.session, Arc::new(index)));
                 self.recording.clouds.0 += 1;
             }
             None => self.recording.clouds.1 += 1,

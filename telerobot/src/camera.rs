@@ -5,10 +5,13 @@
 //! ```text
 //!  1 kHz loop ──CameraPose (latest value)──▶ camera thread: Camera::frame → CloudIndex::build
 //!  1 kHz loop ◀──(frame id, Arc<CloudIndex>) (latest value)──┘      └──▶ send_cloud (operator)
+//!  1 kHz loop ──Arc<CloudIndex> replaced──▶ camera thread: dropped there
 //! ```
 //!
-//! The thread keeps the last few indices alive itself, so the loop never drops the last reference
-//! to one (freeing a kd-tree there would be a deallocation on the real-time thread). With
+//! The loop hands back every index it replaces, and this thread drops it, so the loop never drops
+//! the last reference to one (freeing a kd-tree there would be a deallocation on the real-time
+//! thread; keeping the last few alive here did not hold when the loop stalled for more frames
+//! than were kept). With
 //! `--record` or `--live` it hands each frame to the recorder too.
 //!
 //! Every frame is held to the real-time budget before it is indexed ([`FrameBudget`]): a frame
@@ -17,7 +20,6 @@
 //! logged once). The simulated camera and cloud files are fitted at load already; this guards
 //! a ROS 2 camera's frames, whose density is known only when they come.
 
-use std::collections::VecDeque;
 use std::io;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -46,8 +48,10 @@ pub(crate) use start::start;
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);
-/// Indices the camera thread keeps alive (the loop holds at most the newest one it took).
-const KEEP: usize = 4;
+/// Indices the loop may hand back between two polls of the camera thread: it drains them before
+/// it publishes a frame, one a poll, so the loop retires at most one in between; a push into a
+/// full queue would drop, and free, on the loop.
+const RETIRED: usize = 8;
 
 /// Where the tool and the object are, published by the loop every tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -67,6 +71,8 @@ pub struct CameraFeed {
     pub pose: Mailbox<CameraPose>,
     /// Camera → loop: the newest frame's id and index.
     pub index: Mailbox<(u64, Arc<CloudIndex>)>,
+    /// Loop → camera: the indices the loop replaced, to drop.
+    pub retired: Mailbox<Arc<CloudIndex>>,
     frames: AtomicU64,
     rejected: AtomicU64,
     downsampled: AtomicU64,
@@ -78,6 +84,7 @@ impl Default for CameraFeed {
         CameraFeed {
             pose: Mailbox::latest(),
             index: Mailbox::latest(),
+            retired: Mailbox::new(RETIRED),
             frames: AtomicU64::new(0),
             rejected: AtomicU64::new(0),
             downsampled: AtomicU64::new(0),
@@ -203,10 +210,10 @@ fn run(
     record: Option<&RecordSink>,
     shutdown: &Shutdown,
 ) {
-    let mut kept: VecDeque<Arc<CloudIndex>> = VecDeque::with_capacity(KEEP + 1);
     let mut frame_id = 0u64;
     let mut pose = None;
     while !shutdown.wait_timeout(POLL) {
+        while feed.retired.take().is_some() {}
         if let Some(p) = feed.pose.take() {
             pose = Some(p);
         }
@@ -225,12 +232,7 @@ fn run(
             Ok(frame) => match CloudIndex::build(&frame) {
                 Ok(index) => {
                     frame_id += 1;
-                    let index = Arc::new(index);
-                    kept.push_back(Arc::clone(&index));
-                    if kept.len() > KEEP {
-                        kept.pop_front();
-                    }
-                    feed.index.push((frame_id, index));
+                    feed.index.push((frame_id, Arc::new(index)));
                     let wire = cloud_to_wire(frame_id, frame);
                     if let Some(sink) = record.filter(|s| s.wants_clouds()) {
                         let cloud = CloudRec {

@@ -4,7 +4,8 @@
 //! Per tick (at the tick's nominal time `now`):
 //! 1. every command queued since the last tick goes to the node (its playout buffer orders them);
 //!    a command of a newer session swaps in a fresh node (new operator, new clock, new model);
-//! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread);
+//! 2. the newest camera index, if any, is installed ([`crate::camera`] builds it off this thread,
+//!    and drops the one it replaces);
 //! 3. the node says where the robot goes (the command whose turn it is, or hold still when the
 //!    newest command is older than 50 ms); the motion guard bounds it (`node::guard`: nothing
 //!    before the robot's first state, hold on a state older than 50 ms, workspace box, step,
@@ -182,11 +183,7 @@ impl ControlLoop {
                 received_ns: c.received_ns,
             });
         }
-        let mut cloud_captured_ns = None;
-        if let Some((frame_id, index)) = self.camera.index.take() {
-            cloud_captured_ns = Some(index.timestamp_ns());
-            self.node.set_cloud(index, frame_id);
-        }
+        let cloud_captured_ns = install_cloud(&self.camera, &mut self.node);
         let wanted = self.bridge.tool_m().map(|tool| self.node.target(now, tool));
         let sample = self.bridge.step(now, wanted.as_ref());
         let target = self.bridge.commanded().copied();
@@ -318,6 +315,18 @@ impl State {
     }
 }
 
+/// Installs the camera's newest index, if one came, and returns its capture time [ns]; the index
+/// it replaces goes back to the camera thread to be dropped: the loop may hold its last
+/// reference, and dropping that would free a kd-tree on the loop.
+fn install_cloud(camera: &CameraFeed, node: &mut TelerobotNode) -> Option<i64> {
+    let (frame_id, index) = camera.index.take()?;
+    let captured_ns = index.timestamp_ns();
+    if let Some(old) = node.set_cloud(index, frame_id) {
+        camera.retired.push(old);
+    }
+    Some(captured_ns)
+}
+
 /// This tick's record for the recording: plain values, built on the stack.
 fn tick_record(
     node: &TelerobotNode,
@@ -355,4 +364,45 @@ fn tick_record(
     ]
     .map(|e| e.map(|(u, est)| EstimatorSnapshot::of(est, u)));
     record
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mmt::contact::CloudIndex;
+
+    /// A plane of points at z = 0 over ±`half` mm, 1 mm apart, indexed, captured at `t_ns`.
+    fn plane(half: i16, t_ns: i64) -> Arc<CloudIndex> {
+        let points = (-half..=half)
+            .flat_map(|i| {
+                (-half..=half).map(move |j| [f32::from(i) * 1e-3, f32::from(j) * 1e-3, 0.0])
+            })
+            .collect();
+        let frame = mmt::cloud::CloudFrame::new(points, t_ns, mmt::cloud::Pose::IDENTITY).unwrap();
+        Arc::new(CloudIndex::build(&frame).unwrap())
+    }
+
+    /// CI (stop 27): the camera thread kept the last four indices alive, but when it published
+    /// four more while the loop held one (a stalled loop), the loop's next install dropped that
+    /// one's last reference and freed it on the loop. Now the loop hands back every index it
+    /// replaces, whoever else still holds it.
+    #[test]
+    fn the_loop_hands_back_every_cloud_index_it_replaces() {
+        let settings = sim::scene::Scene::exp1().telerobot_settings();
+        let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
+        let camera = CameraFeed::default();
+        assert_eq!(install_cloud(&camera, &mut node), None);
+        let first = plane(10, 7);
+        let weak = Arc::downgrade(&first);
+        camera.index.push((1, first));
+        assert_eq!(install_cloud(&camera, &mut node), Some(7));
+        assert!(camera.retired.is_empty());
+        assert_eq!(weak.strong_count(), 1, "the node holds the last reference");
+        camera.index.push((2, plane(11, 9)));
+        assert_eq!(install_cloud(&camera, &mut node), Some(9));
+        assert_eq!(weak.strong_count(), 1, "not dropped on the loop");
+        assert_eq!(camera.retired.len(), 1);
+        while camera.retired.take().is_some() {}
+        assert_eq!(weak.strong_count(), 0);
+    }
 }
