@@ -354,6 +354,7 @@ impl Helper {
             }
             let sample = TickSample {
                 index: t.index,
+                sample_time_ns: Some(t.sample_time_ns),
                 position_m: t.position_m,
                 force_n: t.force_n,
                 in_contact: t.in_contact,

@@ -20,6 +20,7 @@ fn batch(from: u64, to: u64, gain: f64, hole: std::ops::Range<u64>) -> Tapped {
     let ticks = (from..to)
         .map(|k| TickSample {
             index: k,
+            sample_time_ns: None,
             position_m: [0.0; 3],
             force_n: force(k).map(|f| f * gain),
             in_contact: true,

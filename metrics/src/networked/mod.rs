@@ -4,10 +4,10 @@
 //! report FILE.mcap` computes them again from a recording of the same run: the same inputs give
 //! the same figures.
 //!
-//! How the series is built: operator tick `k` is the command sampled at `t0 + k·T`; each
-//! measurement names the command it executed (`command_sample_time_ns`), so the force the
-//! telerobot measured lines up with the force rendered for the same command — "rendered shifted
-//! by the delay", exactly. The telerobot's ground truth is not on the wire: the "true" force is
+//! How the series is built: operator tick `k` is due at `t0 + k·T` and samples its command when
+//! it runs (its `sample_time_ns`, later than that after a stall); each measurement names the
+//! command it executed (`command_sample_time_ns`), so the force the telerobot measured lines up
+//! with the force rendered for the same command — "rendered shifted by the delay", exactly. The telerobot's ground truth is not on the wire: the "true" force is
 //! the measured one (sensor noise included), the true contact is the telerobot's tracked contact,
 //! and the contact-deflection drift figure is left out. There is no shadow node in the app, so
 //! the remote-only contact figures are left out too.
@@ -27,8 +27,12 @@ pub use delay::{DelayEstimate, LagRange};
 /// What one haptic-loop tick contributes to the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TickSample {
-    /// Tick number (the command's sample time is `start + index·period`).
+    /// Tick number (the tick's deadline is `start + index·period`).
     pub index: u64,
+    /// The command's sample time: when the loop read the device [ns, operator clock]; after a
+    /// stall, later than the tick's deadline. Absent (recordings made before it): the deadline.
+    #[serde(default)]
+    pub sample_time_ns: Option<i64>,
     /// The commanded position \[m\], world frame.
     pub position_m: [f64; 3],
     /// The operator node's force \[N\], before the safety layer.
@@ -122,7 +126,7 @@ pub fn figures(
     // The delay takes the run's set delay when known (the demo), else the measured one (a
     // delay, so not below 0: the estimate spreads ±2 ms around a zero delay): the thesis's
     // contact-latency figure is two of it.
-    let estimate = measured_delay(run, measurements, &series);
+    let estimate = measured_delay(run, ticks, measurements, &series);
     let info = RunInfo {
         experiment: run.experiment.clone(),
         scene: run.scene.clone(),
@@ -219,8 +223,9 @@ pub fn series(
     // without one keep the previous state), so that "time to stable" counts from the first
     // contact on the same time axis.
     let mut stable = vec![None; n];
+    let sampled = CommandTicks::of(run, ticks);
     for m in measurements {
-        let command_ns = m.command_sample_time_ns - run.start_ns;
+        let command_ns = sampled.deadline_ns(m.command_sample_time_ns) - run.start_ns;
         s.push_telerobot(
             command_ns,
             m.force_on_tool_n,
@@ -249,15 +254,63 @@ pub fn series(
     (s, missing)
 }
 
+/// Which tick sampled a command: the ticks' sample times, in tick order.
+struct CommandTicks {
+    /// `(sample_time_ns, index)` of the ticks that recorded one.
+    sampled: Vec<(i64, u64)>,
+    start_ns: i64,
+    period_ns: i64,
+}
+
+impl CommandTicks {
+    fn of(run: &NetworkedRun, ticks: &[TickSample]) -> CommandTicks {
+        let mut sampled: Vec<(i64, u64)> = ticks
+            .iter()
+            .filter_map(|t| Some((t.sample_time_ns?, t.index)))
+            .collect();
+        // A loop's read times never go back; a hand-edited recording's might.
+        sampled.sort_unstable();
+        CommandTicks {
+            sampled,
+            start_ns: run.start_ns,
+            period_ns: run.period_ns,
+        }
+    }
+
+    /// The deadline of the tick that sampled the command stamped `command_ns`: the last tick that
+    /// sampled at or before it. Without recorded sample times (older recordings), the stamp is
+    /// the deadline.
+    fn deadline_ns(&self, command_ns: i64) -> i64 {
+        let at = self.sampled.partition_point(|&(t, _)| t <= command_ns);
+        match at.checked_sub(1).map(|i| self.sampled[i]) {
+            Some((_, index)) => self.start_ns + index as i64 * self.period_ns,
+            None if self.sampled.is_empty() => command_ns,
+            // Before the first tick recorded: not this run's command.
+            None => self.start_ns - self.period_ns,
+        }
+    }
+}
+
 /// The cross-correlation of the rendered and the measured tangential force, over the ticks where
-/// a model is rendered.
+/// a model is rendered, each at the time it was rendered: the time the loop read the device,
+/// which after a stall is later than the tick's deadline (the lateness is not link delay).
 fn measured_delay(
     run: &NetworkedRun,
+    ticks: &[TickSample],
     measurements: &[MeasurementSample],
     s: &Series,
 ) -> Option<DelayEstimate> {
-    let rendered: Vec<f64> = s.rendered.iter().map(|f| vec3::dot(*f, s.axis)).collect();
     let period = run.period_ns as f64;
+    let rendered: Vec<(f64, f64)> = ticks
+        .iter()
+        .filter(|t| t.rendering)
+        .map(|t| {
+            let at = t
+                .sample_time_ns
+                .map_or(t.index as f64, |ns| (ns - run.start_ns) as f64 / period);
+            (at, vec3::dot(t.force_n, s.axis))
+        })
+        .collect();
     let measured: Vec<(f64, f64)> = measurements
         .iter()
         .filter_map(|m| {
@@ -266,18 +319,65 @@ fn measured_delay(
             Some((t as f64 / period, vec3::dot(m.force_on_tool_n, s.axis)))
         })
         .collect();
-    delay::estimate(
-        &rendered,
-        &s.rendering,
-        &measured,
-        period * 1e-9,
-        LagRange::default(),
-    )
+    delay::estimate(&rendered, &measured, period * 1e-9, LagRange::default())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With commands stamped when the device is read, a stalled loop's catch-up ticks carry
+    /// stamps milliseconds after their deadlines, several within one period: divided by the
+    /// period, their measurements landed on later ticks (and all but the first were lost). Each
+    /// now lands on the tick that sampled its command.
+    #[test]
+    fn a_measurement_lands_on_the_tick_that_sampled_its_command() {
+        const MS: i64 = 1_000_000;
+        let run = NetworkedRun {
+            start_ns: 50 * MS,
+            period_ns: MS,
+            ..NetworkedRun::default()
+        };
+        // Ticks 3..=6 stall until 6.5 ms, then run 10 µs apart.
+        let read = |k: i64| match k {
+            3..=6 => 6 * MS + MS / 2 + (k - 3) * 10_000,
+            _ => k * MS,
+        };
+        let ticks: Vec<TickSample> = (0..10)
+            .map(|k| TickSample {
+                index: k as u64,
+                sample_time_ns: Some(run.start_ns + read(k)),
+                ..TickSample::default()
+            })
+            .collect();
+        let sampled = CommandTicks::of(&run, &ticks);
+        for k in 0..10 {
+            assert_eq!(
+                sampled.deadline_ns(run.start_ns + read(k)),
+                run.start_ns + k * MS,
+                "tick {k}"
+            );
+        }
+        // Between two ticks' reads: the earlier one's command still ran.
+        assert_eq!(
+            sampled.deadline_ns(run.start_ns + 8 * MS + 1),
+            run.start_ns + 8 * MS
+        );
+        // Before the first tick: not this run's; none recorded: the stamp itself.
+        assert!(sampled.deadline_ns(run.start_ns - 1) < run.start_ns);
+        let unstamped: Vec<TickSample> = ticks
+            .iter()
+            .map(|t| TickSample {
+                sample_time_ns: None,
+                ..*t
+            })
+            .collect();
+        let nominal = CommandTicks::of(&run, &unstamped);
+        assert_eq!(
+            nominal.deadline_ns(run.start_ns + 6_500_000),
+            run.start_ns + 6_500_000
+        );
+    }
 
     /// `mmt report FILE.mcap` left every window unmarked; the run's report marked them.
     #[test]

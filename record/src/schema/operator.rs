@@ -13,7 +13,9 @@ pub struct OperatorTick {
     pub session: u64,
     /// Tick number.
     pub index: u64,
-    /// The tick's nominal time, the command's sample time [ns, operator clock].
+    /// The command's sample time: when the tick read the device [ns, operator clock] (after a
+    /// stall, later than the tick's deadline; = the deadline in an experiment, and in recordings
+    /// made before commands were stamped when the device was read).
     pub sample_time_ns: i64,
     /// When the tick actually started [ns, operator clock] (= `sample_time_ns` in an experiment).
     pub started_ns: i64,
@@ -60,6 +62,7 @@ impl OperatorTick {
     pub fn sample(&self) -> TickSample {
         TickSample {
             index: self.index,
+            sample_time_ns: Some(self.sample_time_ns),
             position_m: self.command_position_m,
             force_n: self.force_rendered_n,
             in_contact: self.in_contact,
