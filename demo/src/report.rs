@@ -56,6 +56,7 @@ impl DemoReport {
                 self.telerobot.camera_frames,
                 self.telerobot.camera_over_budget,
             ]),
+            played_lag_ms: self.telerobot.last.node.mean_played_lag_ms(),
         }
     }
 }

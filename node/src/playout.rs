@@ -256,6 +256,11 @@ impl Playout {
         self.pending.iter().flatten()
     }
 
+    /// `L` as played this tick: the tick's time less the path's playout time \[ns\].
+    pub(super) fn played_lag_ns(&self) -> Option<i64> {
+        self.last.map(|(tau, now)| now - tau)
+    }
+
     /// When the newest command arrived [ns], if any did.
     pub(super) fn last_received_ns(&self) -> Option<i64> {
         self.last_received_ns

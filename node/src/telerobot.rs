@@ -86,6 +86,23 @@ pub struct TelerobotStats {
     pub rejected_clouds: u64,
     /// Contact episodes.
     pub contact_onsets: u64,
+    /// Ticks the robot followed the operator's path (fresh commands, not holding).
+    #[serde(default)]
+    pub played_ticks: u64,
+    /// Over them, the sum of the playout lag `L` as played: how long after its sample time the
+    /// robot was told a point of the path (the link's delay, plus what the playout added for
+    /// its jitter) \[µs\].
+    #[serde(default)]
+    pub played_lag_us_sum: u64,
+}
+
+impl TelerobotStats {
+    /// The mean playout lag over the ticks the robot followed the path \[ms\]: the delay from
+    /// the operator's device to the robot, as the robot executed it.
+    pub fn mean_played_lag_ms(&self) -> Option<f64> {
+        (self.played_ticks > 0)
+            .then(|| self.played_lag_us_sum as f64 / self.played_ticks as f64 * 1e-3)
+    }
 }
 
 /// The telerobot node.
@@ -211,6 +228,10 @@ impl TelerobotNode {
         match current {
             Some(c) if fresh => {
                 self.hold_position = None;
+                if let Some(lag) = self.playout.played_lag_ns() {
+                    self.stats.played_ticks += 1;
+                    self.stats.played_lag_us_sum += u64::try_from(lag / 1000).unwrap_or(0);
+                }
                 let (position_m, velocity_m_per_s) =
                     self.continuity
                         .pass(now_ns, c.position_m, c.velocity_m_per_s);

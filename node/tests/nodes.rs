@@ -293,6 +293,39 @@ fn commands_with_an_implausible_playout_time_are_refused() {
     assert_eq!(node.stats().commands, 3);
 }
 
+/// The mean playout lag is the delay at which the robot followed the path: over a steady 40 ms
+/// link, 40 ms (the playout adds nothing without jitter); the ticks it held count nothing.
+#[test]
+fn the_mean_played_lag_is_the_steady_links_delay() {
+    const MS: i64 = 1_000_000;
+    let mut node =
+        TelerobotNode::new(Scene::exp1().telerobot_settings(), [0.0, 0.0, 0.01]).unwrap();
+    assert_eq!(node.stats().mean_played_lag_ms(), None);
+    for k in 0..2_000i64 {
+        let now = k * MS;
+        // Sampled 40 ms before it arrives, one a tick.
+        node.on_command(CommandSample {
+            sample_time_ns: now - 40 * MS,
+            position_m: [0.0, 1e-5 * k as f64, 0.01],
+            velocity_m_per_s: [0.0, 0.01, 0.0],
+            received_ns: now,
+        });
+        node.target(now, [0.0, 0.0, 0.01]);
+    }
+    let stats = node.stats();
+    assert!(stats.played_ticks > 1_900, "{stats:?}");
+    let lag = stats.mean_played_lag_ms().unwrap();
+    assert!((lag - 40.0).abs() < 0.01, "{lag} ms");
+    // No command for 200 ms: the robot holds, the mean stays.
+    for k in 2_000..2_200i64 {
+        node.target(k * MS, [0.0, 0.0, 0.01]);
+    }
+    let held = node.stats();
+    assert!(held.holding_ticks > 100, "{held:?}");
+    assert!(held.played_ticks - stats.played_ticks < 60, "{held:?}");
+    assert!((held.mean_played_lag_ms().unwrap() - 40.0).abs() < 0.5);
+}
+
 /// A plane of points at z = 0, 1 mm apart over ±40 mm.
 fn plane_cloud() -> std::sync::Arc<mmt::contact::CloudIndex> {
     let points = (-40..=40)

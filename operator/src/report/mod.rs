@@ -141,6 +141,9 @@ pub struct PeerFigures {
     /// The telerobot's camera frames `[sent, refused]` and, of them, over the real-time budget
     /// `[downsampled, refused]`.
     pub telerobot_camera: Option<[(u64, u64); 2]>,
+    /// The mean delay at which the telerobot played the operator's path \[ms\]: the link's, plus
+    /// what its playout added for the link's jitter.
+    pub played_lag_ms: Option<f64>,
 }
 
 /// What a run knew about itself.

@@ -32,7 +32,7 @@ fn write_extras(out: &mut String, r: &NetworkedReport, peer: &PeerFigures) -> st
         }
     }
     let mut rows = Rows::default();
-    delay_rows(&mut rows, r);
+    delay_rows(&mut rows, r, peer);
     loop_rows(
         &mut rows,
         "haptic loop period p50 / p99 / max",
@@ -104,13 +104,19 @@ fn quinn(l: &LinkReport) -> String {
 }
 
 /// The measured delay, the set one, and how well the signals matched.
-fn delay_rows(rows: &mut Rows, r: &NetworkedReport) {
+fn delay_rows(rows: &mut Rows, r: &NetworkedReport, peer: &PeerFigures) {
     rows.row(
         "measured_delay_ms (rendered leads measured)",
         opt(r.measured_delay_ms, "ms"),
     );
     if let Some(d) = r.set_delay_ms {
         rows.row("  set one-way delay", format!("{d:.2} ms"));
+    }
+    if let Some(l) = peer.played_lag_ms {
+        rows.row(
+            "  telerobot played the path at (mean)",
+            format!("{l:.2} ms"),
+        );
     }
     if let Some(e) = &r.delay_estimate {
         rows.row("  peak correlation", format!("{:.4}", e.peak_correlation));

@@ -100,9 +100,14 @@ fn the_table_shows_the_clouds_over_budget_on_both_sides() {
     r.clouds_over_budget = (7, 2);
     let peer = PeerFigures {
         telerobot_camera: Some([(300, 4), (9, 1)]),
+        played_lag_ms: Some(51.234),
         ..PeerFigures::default()
     };
     let t = table(&r, &peer);
+    assert_eq!(
+        value(&t, "  telerobot played the path at (mean)"),
+        "51.23 ms"
+    );
     assert_eq!(value(&t, "cloud frames indexed / refused"), "120 / 3");
     assert_eq!(
         value(&t, "  over the budget: downsampled / refused"),
