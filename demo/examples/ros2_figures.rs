@@ -167,7 +167,7 @@ fn main() {
     println!(
         "bridge: {} states from {} poses / {} twists / {} wrenches; stamped ahead of the clock \
          {}, out of order {}, duplicates {}, non-finite {}, impossible jumps {}, unpaired {}, \
-         undecodable {}, dropped {}",
+         paired with another stamp {}, undecodable {}, dropped {}",
         s.samples,
         s.poses,
         s.twists,
@@ -178,6 +178,7 @@ fn main() {
         s.non_finite,
         s.impossible_jumps,
         s.unpaired,
+        s.inexact,
         r.io.undecodable,
         r.superseded
     );

@@ -149,6 +149,10 @@ pub struct StateCounts {
     pub impossible_jumps: u64,
     /// Poses with no wrench (or twist) within the pairing tolerance.
     pub unpaired: u64,
+    /// Samples whose wrench or twist was of another stamp than the pose's (the nearest within
+    /// the tolerance).
+    #[serde(default)]
+    pub inexact: u64,
 }
 
 /// When a message arrived, on both of the receiver's clocks.
@@ -183,14 +187,13 @@ impl Recent {
         self.latest.is_some_and(|(t, _)| t >= stamp)
     }
 
-    /// The sample nearest `stamp`, if within `tolerance`.
-    fn nearest(&self, stamp: i64, tolerance: i64) -> Option<Vec3> {
+    /// The sample nearest `stamp`, if within `tolerance`, and its stamp.
+    fn nearest(&self, stamp: i64, tolerance: i64) -> Option<(i64, Vec3)> {
         [self.latest, self.previous]
             .into_iter()
             .flatten()
             .min_by_key(|(t, _)| (t - stamp).abs())
             .filter(|(t, _)| (t - stamp).abs() <= tolerance)
-            .map(|(_, v)| v)
     }
 }
 
@@ -436,10 +439,14 @@ impl StateAssembler {
         } else {
             Some(None) // differentiated below
         };
-        let (Some(force), Some(twist)) = (force, twist) else {
+        let (Some((force_at, force)), Some(twist)) = (force, twist) else {
             self.counts.unpaired += 1;
             return;
         };
+        if force_at != p.stamp || twist.is_some_and(|(t, _)| t != p.stamp) {
+            self.counts.inexact += 1;
+        }
+        let twist = twist.map(|(_, v)| v);
         let force = match self.config.wrench_frame {
             WrenchFrame::Base => force,
             WrenchFrame::Tool => p.rotation.map_or(force, |r| r.rotate(force)),

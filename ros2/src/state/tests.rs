@@ -77,6 +77,7 @@ fn one_sample_per_stamp_once_every_stream_has_it_in_any_arrival_order() {
     assert_eq!(s.len(), 1);
     assert_eq!(s[0].sample.force_on_tool_n, [0.0, 0.0, 1.6]);
     assert_eq!(a.counts().samples, 2);
+    assert_eq!(a.counts().inexact, 0);
 }
 
 #[test]
@@ -96,6 +97,7 @@ fn a_pose_overtaken_is_paired_with_the_nearest_or_refused() {
     for (i, s) in s.iter().enumerate() {
         assert_eq!(s.sample.force_on_tool_n[2], (i + 1) as f64);
     }
+    assert_eq!(a.counts().inexact, 4, "each with a wrench 0.3 ms off");
     // A wrench stream that stopped: poses are refused as unpaired, not paired with old forces.
     for k in 10..=14 {
         a.on_pose(&pose(k * MS, [0.0; 3]), rx(0));
