@@ -2,11 +2,12 @@
 //! figures where no robot (and no ROS) is installed.
 //!
 //! It plays a scene's simulated world (`sim::SimBridge`: the exp-1 object, Karnopp friction,
-//! Franka-like sensor noise) at its own rate (1 kHz) as a driver with a Cartesian tracking
-//! controller would: each tick it takes the newest commanded pose from `target_pose`, moves the
-//! tool there (at the commanded twist of the same stamp, or else the poses' difference over
-//! their stamps; a tick with no new target extrapolates along that velocity), and publishes
-//! the measured pose, twist and wrench with one header stamp (ROS time). Optionally a camera
+//! Franka-like sensor noise) at its own rate (1 kHz) as a driver with a Cartesian trajectory
+//! interpolator would: the commanded poses from `target_pose` (with the commanded twist of the
+//! same stamp, or else the poses' difference over their stamps) are played by their stamps, a
+//! tick late, whenever DDS delivered them ([`path`]); each tick the tool goes to where that path
+//! is, and the arm publishes the measured pose, twist and wrench with one header stamp (ROS
+//! time). Optionally a camera
 //! thread publishes the scene's simulated depth camera as `sensor_msgs/PointCloud2`, in a camera
 //! frame mounted above the table (what `realsense2_camera` would send).
 //!
@@ -34,6 +35,10 @@ use crate::msg::{
 };
 use crate::pointcloud2::encode_xyz;
 use crate::topics::RobotTopics;
+
+mod path;
+
+use path::{Point as PathPoint, TargetPath};
 
 /// The arm's settings.
 #[derive(Clone, Debug)]
@@ -186,12 +191,8 @@ impl TestArm {
             endpoints,
             bridge,
             frame_id: config.frame_id.clone(),
-            target: None,
+            path: TargetPath::new(),
             target_twist: None,
-            velocity: [0.0; 3],
-            period_s: 1.0 / config.rate_hz,
-            ticks_since_target: 0,
-            last_target_at: None,
             last_index: None,
             wall_offset_ns: graph::wall_minus_monotonic_ns(),
             poses,
@@ -239,15 +240,10 @@ struct Arm {
     endpoints: Endpoints,
     bridge: SimBridge,
     frame_id: String,
-    /// The newest target: (stamp, position).
-    target: Option<(i64, [f64; 3])>,
+    /// The commanded path, played by its stamps.
+    path: TargetPath,
     /// The newest commanded twist: (stamp, velocity).
     target_twist: Option<(i64, [f64; 3])>,
-    velocity: [f64; 3],
-    period_s: f64,
-    /// Ticks since a new target came (a missing one is extrapolated along the velocity).
-    ticks_since_target: u32,
-    last_target_at: Option<i64>,
     /// The last tick's index: the world steps once per period, skipped ticks included.
     last_index: Option<u64>,
     /// ROS time − loop clock \[ns\].
@@ -277,27 +273,16 @@ impl Arm {
     }
 
     fn tick(&mut self, now: i64, steps: u64) {
-        let fresh = self.take_targets(now);
-        self.ticks_since_target = if fresh {
-            0
-        } else {
-            self.ticks_since_target.saturating_add(steps as u32)
-        };
-        // A target not renewed for 5 ms is held still; until then a missing one is extrapolated
-        // along the commanded velocity, as a tracking controller's interpolator would.
-        if self.last_target_at.is_none_or(|at| now - at > 5_000_000) {
-            self.velocity = [0.0; 3];
-        }
-        let ahead = f64::from(self.ticks_since_target) * self.period_s;
-        let position = self.target.map_or_else(
-            || node::RobotBridge::tool_m(&self.bridge).unwrap_or_default(),
-            |t| std::array::from_fn(|k| t.1[k] + self.velocity[k] * ahead),
-        );
+        self.take_targets();
+        let (position, velocity) = self.path.at(now + self.wall_offset_ns).unwrap_or_else(|| {
+            let here = node::RobotBridge::tool_m(&self.bridge).unwrap_or_default();
+            (here, [0.0; 3])
+        });
         // Held up for `steps` periods, the robot's own controller (which does not stall with
         // this thread) went to the target along the way ([`SimBridge::step_periods`]).
         let target = Target {
             position_m: position,
-            velocity_m_per_s: self.velocity,
+            velocity_m_per_s: velocity,
             command_sample_time_ns: 0,
             holding: false,
         };
@@ -351,8 +336,8 @@ impl Arm {
             .push((now, s.truth.position_m, s.object_offset_m));
     }
 
-    /// Takes the commanded twists and poses that arrived; whether a new pose came.
-    fn take_targets(&mut self, now: i64) -> bool {
+    /// Takes the commanded twists and poses that arrived into the path.
+    fn take_targets(&mut self) {
         if let Some(sub) = &self.endpoints.target_twist {
             while let Ok(Some((msg, _))) = sub.take() {
                 if let Some(stamp) = msg.header.stamp.to_nanos() {
@@ -360,7 +345,6 @@ impl Arm {
                 }
             }
         }
-        let mut fresh = false;
         while let Ok(Some((msg, _))) = self.endpoints.target.take() {
             let Some(stamp) = msg.header.stamp.to_nanos() else {
                 continue;
@@ -370,25 +354,23 @@ impl Arm {
                 continue;
             }
             self.report.targets += 1;
-            fresh = true;
-            match self.target_twist {
-                Some((t, v)) if t == stamp && v.iter().all(|c| c.is_finite()) => {
-                    self.velocity = v;
-                }
-                _ => {
-                    if let Some((t0, p0)) = self.target
-                        && stamp > t0
-                        && stamp - t0 < 50_000_000
-                    {
-                        let dt = (stamp - t0) as f64 * 1e-9;
-                        self.velocity = std::array::from_fn(|k| (p[k] - p0[k]) / dt);
+            let newest = self.path.newest().copied();
+            let velocity = match self.target_twist {
+                Some((t, v)) if t == stamp && v.iter().all(|c| c.is_finite()) => v,
+                _ => match newest {
+                    Some(n) if stamp > n.stamp_ns && stamp - n.stamp_ns < 50_000_000 => {
+                        let dt = (stamp - n.stamp_ns) as f64 * 1e-9;
+                        std::array::from_fn(|k| (p[k] - n.position_m[k]) / dt)
                     }
-                }
-            }
-            self.target = Some((stamp, p));
-            self.last_target_at = Some(now);
+                    _ => [0.0; 3],
+                },
+            };
+            self.path.push(PathPoint {
+                stamp_ns: stamp,
+                position_m: p,
+                velocity_m_per_s: velocity,
+            });
         }
-        fresh
     }
 }
 
