@@ -89,12 +89,17 @@ fn a_session_commanding_1e306_m_leaves_the_next_one_as_a_fresh_daemon_would() {
     let g = fresh.summary.last.guard;
     assert_eq!((g.workspace, g.speed), Default::default(), "{g:?}");
     assert!(g.step.ticks < 100, "{g:?}");
+    // Accuracy as a fresh daemon's: 6 s runs on a loaded two-core machine spread by several
+    // points each way (fresh 5.28 / 9.09 %, after the hostile session 9.13 / 6.83 %, in two
+    // runs), so the bound is 5 points and 15 %. What this guards against fails far harder: a
+    // session after a poisoned world had mostly NaN forces, and one whose proxy was left on the
+    // wrong side of the surface never became stable (both checked above as well).
     let (a, b) = (
         fresh.rms_error_pct_after_stable.unwrap(),
         poisoned.rms_error_pct_after_stable.unwrap(),
     );
     assert!(
-        (a - b).abs() <= 2.0,
+        (a - b).abs() <= 5.0 && a.max(b) < 15.0,
         "RMS error after stable: fresh {a:.2} %, after the hostile session {b:.2} %"
     );
 }
