@@ -35,8 +35,11 @@ fn operator(dir: &Path, addr: std::net::SocketAddr, device: &str, seconds: &str)
     command
 }
 
-/// The distance from `p` to the recorded path `path` near time `t_s` (within `window_s`): the
-/// replay interpolates linearly between recorded samples, so a replayed point lies on a segment.
+/// The distance from `p` to the recorded path `path` near time `t_s` (the segments that overlap
+/// `t_s ± window_s`): the replay interpolates linearly between recorded samples, so a replayed
+/// point lies on a segment. A segment counts by its span, not by its start: the ticks carry the
+/// time the device was read, and a stall of the recording's loop leaves one segment longer than
+/// the window (CI: a point 37 µm "off" the path lay on a segment that started too early).
 fn off_path(path: &[DeviceSample], t_s: f64, p: [f64; 3], window_s: f64) -> f64 {
     let dist = |a: [f64; 3], b: [f64; 3]| {
         let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
@@ -53,7 +56,7 @@ fn off_path(path: &[DeviceSample], t_s: f64, p: [f64; 3], window_s: f64) -> f64 
             .sqrt()
     };
     path.windows(2)
-        .filter(|w| (w[0].0 - t_s).abs() < window_s)
+        .filter(|w| w[0].0 < t_s + window_s && w[1].0 > t_s - window_s)
         .map(|w| dist(w[0].1, w[1].1))
         .fold(f64::INFINITY, f64::min)
 }
