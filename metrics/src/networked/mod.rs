@@ -7,9 +7,10 @@
 //! How the series is built: operator tick `k` is due at `t0 + k·T` and samples its command when
 //! it runs (its `sample_time_ns`, later than that after a stall); each measurement names the
 //! command it executed (`command_sample_time_ns`), so the force the telerobot measured lines up
-//! with the force rendered for the same command — "rendered shifted by the delay", exactly. The telerobot's ground truth is not on the wire: the "true" force is
-//! the measured one (sensor noise included), the true contact is the telerobot's tracked contact,
-//! and the contact-deflection drift figure is left out. There is no shadow node in the app, so
+//! with the force rendered for the same command — "rendered shifted by the delay", exactly. The
+//! telerobot's ground truth is not on the wire: the "true" force is the measured one (sensor
+//! noise included), the true contact is the telerobot's tracked contact, and the
+//! contact-deflection drift figure is left out. There is no shadow node in the app, so
 //! the remote-only contact figures are left out too.
 
 pub mod delay;
