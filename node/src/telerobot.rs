@@ -86,19 +86,21 @@ pub struct TelerobotStats {
     pub rejected_clouds: u64,
     /// Contact episodes.
     pub contact_onsets: u64,
-    /// Ticks the robot followed the operator's path (fresh commands, not holding).
+    /// Ticks the robot followed the operator's path (fresh commands, the path not stopped).
     #[serde(default)]
     pub played_ticks: u64,
     /// Over them, the sum of the playout lag `L` as played: how long after its sample time the
     /// robot was told a point of the path (the link's delay, plus what the playout added for
-    /// its jitter) \[µs\].
+    /// its jitter) \[µs\]. The sample times are on the operator's clock: across two hosts the
+    /// lag includes the clocks' offset (negative when the operator's clock is ahead).
     #[serde(default)]
-    pub played_lag_us_sum: u64,
+    pub played_lag_us_sum: i64,
 }
 
 impl TelerobotStats {
     /// The mean playout lag over the ticks the robot followed the path \[ms\]: the delay from
-    /// the operator's device to the robot, as the robot executed it.
+    /// the operator's device to the robot, as the robot executed it (on one host; across two,
+    /// plus the clocks' offset).
     pub fn mean_played_lag_ms(&self) -> Option<f64> {
         (self.played_ticks > 0)
             .then(|| self.played_lag_us_sum as f64 / self.played_ticks as f64 * 1e-3)
@@ -228,9 +230,14 @@ impl TelerobotNode {
         match current {
             Some(c) if fresh => {
                 self.hold_position = None;
-                if let Some(lag) = self.playout.played_lag_ns() {
+                if let Some(lag) = self
+                    .playout
+                    .played_lag_ns()
+                    .filter(|_| !self.playout.stopped())
+                {
                     self.stats.played_ticks += 1;
-                    self.stats.played_lag_us_sum += u64::try_from(lag / 1000).unwrap_or(0);
+                    self.stats.played_lag_us_sum =
+                        self.stats.played_lag_us_sum.saturating_add(lag / 1000);
                 }
                 let (position_m, velocity_m_per_s) =
                     self.continuity
