@@ -226,7 +226,9 @@ pub fn series(
     let mut stable = vec![None; n];
     let sampled = CommandTicks::of(run, ticks);
     for m in measurements {
-        let command_ns = sampled.deadline_ns(m.command_sample_time_ns) - run.start_ns;
+        let command_ns = sampled
+            .deadline_ns(m.command_sample_time_ns)
+            .saturating_sub(run.start_ns);
         s.push_telerobot(
             command_ns,
             m.force_on_tool_n,
@@ -278,16 +280,18 @@ impl CommandTicks {
         }
     }
 
-    /// The deadline of the tick that sampled the command stamped `command_ns`: the last tick that
-    /// sampled at or before it. Without recorded sample times (older recordings), the stamp is
-    /// the deadline.
+    /// The deadline of the tick that sampled the command stamped `command_ns` (a command carries
+    /// its tick's sample time exactly). A stamp no recorded tick has (older recordings, whose
+    /// stamps are the deadlines; a tick record dropped) is taken as the deadline itself.
     fn deadline_ns(&self, command_ns: i64) -> i64 {
-        let at = self.sampled.partition_point(|&(t, _)| t <= command_ns);
-        match at.checked_sub(1).map(|i| self.sampled[i]) {
-            Some((_, index)) => self.start_ns + index as i64 * self.period_ns,
-            None if self.sampled.is_empty() => command_ns,
-            // Before the first tick recorded: not this run's command.
-            None => self.start_ns - self.period_ns,
+        let at = self.sampled.partition_point(|&(t, _)| t < command_ns);
+        match self.sampled.get(at) {
+            Some(&(t, index)) if t == command_ns => {
+                let k = i64::try_from(index).unwrap_or(i64::MAX);
+                self.start_ns
+                    .saturating_add(k.saturating_mul(self.period_ns))
+            }
+            _ => command_ns,
         }
     }
 }
@@ -306,9 +310,9 @@ fn measured_delay(
         .iter()
         .filter(|t| t.rendering)
         .map(|t| {
-            let at = t
-                .sample_time_ns
-                .map_or(t.index as f64, |ns| (ns - run.start_ns) as f64 / period);
+            let at = t.sample_time_ns.map_or(t.index as f64, |ns| {
+                ns.saturating_sub(run.start_ns) as f64 / period
+            });
             (at, vec3::dot(t.force_n, s.axis))
         })
         .collect();
@@ -359,13 +363,20 @@ mod tests {
                 "tick {k}"
             );
         }
-        // Between two ticks' reads: the earlier one's command still ran.
-        assert_eq!(
-            sampled.deadline_ns(run.start_ns + 8 * MS + 1),
-            run.start_ns + 8 * MS
+        // A stamp no recorded tick has (its record dropped), or one before the run: the stamp.
+        let between = run.start_ns + 8 * MS + 1;
+        assert_eq!(sampled.deadline_ns(between), between);
+        assert_eq!(sampled.deadline_ns(run.start_ns - 1), run.start_ns - 1);
+        // A recording's garbage index does not overflow.
+        let garbage = CommandTicks::of(
+            &run,
+            &[TickSample {
+                index: u64::MAX,
+                sample_time_ns: Some(7),
+                ..TickSample::default()
+            }],
         );
-        // Before the first tick: not this run's; none recorded: the stamp itself.
-        assert!(sampled.deadline_ns(run.start_ns - 1) < run.start_ns);
+        assert_eq!(garbage.deadline_ns(7), i64::MAX);
         let unstamped: Vec<TickSample> = ticks
             .iter()
             .map(|t| TickSample {
