@@ -38,9 +38,9 @@ use mmt::vec3::Vec3;
 /// Tick records the helper thread may lag behind by: 8 s at 1 kHz.
 pub const TICK_QUEUE: usize = 8192;
 
-/// Cloud indices the loop may retire between two helper rounds. The helper drains them before
-/// it hands over a cloud, one a round, so the loop retires at most two (the one replaced and one
-/// of an old session) in between; a push into a full queue would drop, and free, on the loop.
+/// Cloud indices the loop may retire between two helper rounds. The loop retires one for each
+/// index it takes, and the helper hands over at most one a round, after draining these: at
+/// most a couple wait at any time. A push into a full queue would drop, and free, on the loop.
 const RETIRED_CLOUDS: usize = 8;
 
 /// What one tick did, for the report and the recording (by tick number). Plain values: pushing
@@ -316,10 +316,6 @@ pub(crate) fn sample_device(
     }
 }
 
-/// What the parameter-age rule sees: a model only while the node renders one (before the first
-/// parameters there is none, and nothing to be stale). Rendering without a known arrival time
-/// cannot happen (the node renders only after parameters this loop handed it) and counts as
-/// stale.
 /// Installs the helper's newest cloud index, if one came for this `session`; the index it
 /// replaces, or one of an old session, goes back to the helper to be dropped: the loop may hold
 /// its last reference, and dropping that would free a kd-tree on the loop.
@@ -337,6 +333,10 @@ fn install_cloud(exchange: &Exchange, node: &mut OperatorNode, session: u64) {
     }
 }
 
+/// What the parameter-age rule sees: a model only while the node renders one (before the first
+/// parameters there is none, and nothing to be stale). Rendering without a known arrival time
+/// cannot happen (the node renders only after parameters this loop handed it) and counts as
+/// stale.
 fn model_age(rendering: bool, last_params_ns: Option<i64>, now_ns: i64) -> Model {
     if !rendering {
         return Model::None;

@@ -3,11 +3,11 @@
 //!
 //! It plays a scene's simulated world (`sim::SimBridge`: the exp-1 object, Karnopp friction,
 //! Franka-like sensor noise) at its own rate (1 kHz) as a driver with a Cartesian trajectory
-//! interpolator would: the commanded poses from `target_pose` (with the commanded twist of the
-//! same stamp, or else the poses' difference over their stamps) are played by their stamps, a
-//! tick late, whenever DDS delivered them ([`path`]); each tick the tool goes to where that path
-//! is, and the arm publishes the measured pose, twist and wrench with one header stamp (ROS
-//! time). Optionally a camera
+//! interpolator would: the commanded poses from `target_pose` are played by their stamps, a
+//! tick late, whenever DDS delivered them (the `path` module; past the newest pose the path goes
+//! on along the commanded twist of its stamp, or else the poses' difference over their stamps);
+//! each tick the tool goes to where that path is, and the arm publishes the measured pose, twist
+//! and wrench with one header stamp (ROS time). Optionally a camera
 //! thread publishes the scene's simulated depth camera as `sensor_msgs/PointCloud2`, in a camera
 //! frame mounted above the table (what `realsense2_camera` would send).
 //!
@@ -353,7 +353,6 @@ impl Arm {
             if !p.iter().all(|c| c.is_finite()) {
                 continue;
             }
-            self.report.targets += 1;
             let newest = self.path.newest().copied();
             let velocity = match self.target_twist {
                 Some((t, v)) if t == stamp && v.iter().all(|c| c.is_finite()) => v,
@@ -365,11 +364,13 @@ impl Arm {
                     _ => [0.0; 3],
                 },
             };
-            self.path.push(PathPoint {
+            let pushed = self.path.push(PathPoint {
                 stamp_ns: stamp,
                 position_m: p,
                 velocity_m_per_s: velocity,
             });
+            // Not counted: one not newer than the newest held (a duplicate, a reordered one).
+            self.report.targets += u64::from(pushed);
         }
     }
 }

@@ -48,9 +48,10 @@ pub(crate) use start::start;
 
 /// How often the camera thread looks for a due frame: 2 ms, so frames are at most 2 ms late.
 const POLL: Duration = Duration::from_millis(2);
-/// Indices the loop may hand back between two polls of the camera thread: it drains them before
-/// it publishes a frame, one a poll, so the loop retires at most one in between; a push into a
-/// full queue would drop, and free, on the loop.
+/// Indices the loop may hand back between two polls of the camera thread. The loop hands back
+/// one for each index it takes, and the thread publishes at most one a poll, after draining
+/// these: at most a couple wait at any time. A push into a full queue would drop, and free, on
+/// the loop.
 const RETIRED: usize = 8;
 
 /// Where the tool and the object are, published by the loop every tick.
