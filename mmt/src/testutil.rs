@@ -5,7 +5,21 @@
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
+use crate::cloud::{CloudFrame, Pose};
+use crate::contact::CloudIndex;
 use crate::model::{Columns, Physical, col};
+
+/// A plane of points at z = 0, 1 mm apart over ±`half_mm` in x and y, captured at `t_ns`,
+/// indexed.
+pub fn plane_index(half_mm: i16, t_ns: i64) -> std::sync::Arc<CloudIndex> {
+    let points = (-half_mm..=half_mm)
+        .flat_map(|i| {
+            (-half_mm..=half_mm).map(move |j| [f32::from(i) * 1e-3, f32::from(j) * 1e-3, 0.0])
+        })
+        .collect();
+    let frame = CloudFrame::new(points, t_ns, Pose::IDENTITY).unwrap();
+    std::sync::Arc::new(CloudIndex::build(&frame).unwrap())
+}
 
 /// The numerics notes' "typical" object (§2.4, §6.2), without friction.
 pub fn typical() -> Physical {

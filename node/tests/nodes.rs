@@ -330,15 +330,6 @@ fn the_mean_played_lag_is_the_steady_links_delay() {
     assert!((after - 40.0).abs() < 0.05, "{after} ms");
 }
 
-/// A plane of points at z = 0, 1 mm apart over ±40 mm.
-fn plane_cloud() -> std::sync::Arc<mmt::contact::CloudIndex> {
-    let points = (-40..=40)
-        .flat_map(|i| (-40..=40).map(move |j| [i as f32 * 1e-3, j as f32 * 1e-3, 0.0]))
-        .collect();
-    let frame = mmt::cloud::CloudFrame::new(points, 0, mmt::cloud::Pose::IDENTITY).unwrap();
-    std::sync::Arc::new(mmt::contact::CloudIndex::build(&frame).unwrap())
-}
-
 /// Steps `node` with the tool at each height of `z` (1 ms apart from `*t`); whether the node's
 /// last measurement said contact.
 fn contact_at(node: &mut TelerobotNode, t: &mut i64, z: &[f64]) -> bool {
@@ -366,7 +357,7 @@ fn contact_at(node: &mut TelerobotNode, t: &mut i64, z: &[f64]) -> bool {
 #[test]
 fn a_new_sessions_node_keeps_the_side_of_the_surface_the_tool_came_from() {
     let settings = Scene::exp1().telerobot_settings();
-    let cloud = plane_cloud();
+    let cloud = mmt::testutil::plane_index(40, 0);
     let mut t = 0;
     let mut first = TelerobotNode::new(settings.clone(), [0.0, 0.0, 0.01]).unwrap();
     first.set_cloud(std::sync::Arc::clone(&cloud), 1);

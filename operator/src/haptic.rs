@@ -453,17 +453,6 @@ mod tests {
         assert_eq!((t.episodes, t.ticks), (1, 2));
     }
 
-    /// A plane of points at z = 0 over ±`half` mm, 1 mm apart, indexed.
-    fn plane(half: i16) -> Arc<CloudIndex> {
-        let points = (-half..=half)
-            .flat_map(|i| {
-                (-half..=half).map(move |j| [f32::from(i) * 1e-3, f32::from(j) * 1e-3, 0.0])
-            })
-            .collect();
-        let frame = mmt::cloud::CloudFrame::new(points, 0, mmt::cloud::Pose::IDENTITY).unwrap();
-        Arc::new(CloudIndex::build(&frame).unwrap())
-    }
-
     /// CI (stop 27): the loop freed cloud indices while recording. The helper kept the last four
     /// alive, but when four more came while the loop held one (a stalled loop, or a burst after
     /// a stalled helper), the loop's next install dropped that one's last reference. Now every
@@ -480,7 +469,7 @@ mod tests {
         .unwrap();
         let exchange = Exchange::default();
         let send = |session, half| {
-            let index = plane(half);
+            let index = mmt::testutil::plane_index(half, 0);
             let weak = Arc::downgrade(&index);
             exchange.clouds.push((session, index));
             weak

@@ -369,18 +369,6 @@ fn tick_record(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mmt::contact::CloudIndex;
-
-    /// A plane of points at z = 0 over ±`half` mm, 1 mm apart, indexed, captured at `t_ns`.
-    fn plane(half: i16, t_ns: i64) -> Arc<CloudIndex> {
-        let points = (-half..=half)
-            .flat_map(|i| {
-                (-half..=half).map(move |j| [f32::from(i) * 1e-3, f32::from(j) * 1e-3, 0.0])
-            })
-            .collect();
-        let frame = mmt::cloud::CloudFrame::new(points, t_ns, mmt::cloud::Pose::IDENTITY).unwrap();
-        Arc::new(CloudIndex::build(&frame).unwrap())
-    }
 
     /// CI (stop 27): the camera thread kept the last four indices alive, but when it published
     /// four more while the loop held one (a stalled loop), the loop's next install dropped that
@@ -392,13 +380,13 @@ mod tests {
         let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
         let camera = CameraFeed::default();
         assert_eq!(install_cloud(&camera, &mut node), None);
-        let first = plane(10, 7);
+        let first = mmt::testutil::plane_index(10, 7);
         let weak = Arc::downgrade(&first);
         camera.index.push((1, first));
         assert_eq!(install_cloud(&camera, &mut node), Some(7));
         assert!(camera.retired.is_empty());
         assert_eq!(weak.strong_count(), 1, "the node holds the last reference");
-        camera.index.push((2, plane(11, 9)));
+        camera.index.push((2, mmt::testutil::plane_index(11, 9)));
         assert_eq!(install_cloud(&camera, &mut node), Some(9));
         assert_eq!(weak.strong_count(), 1, "not dropped on the loop");
         assert_eq!(camera.retired.len(), 1);
