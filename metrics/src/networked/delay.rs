@@ -260,7 +260,8 @@ mod tests {
         assert!(old.delay_ms - delay_ms > 3.0, "{old:?}");
     }
 
-    /// Garbage times size nothing and give no estimate or a finite one.
+    /// Garbage times change nothing (the grid stops at an hour of ticks, and a lone far sample
+    /// has no neighbour to interpolate with); one alone gives no estimate.
     #[test]
     fn non_finite_or_huge_times_are_bounded() {
         let rendered: Vec<(f64, f64)> = (0..2000)
@@ -268,8 +269,10 @@ mod tests {
             .chain([(f64::NAN, 1.0), (f64::INFINITY, 2.0), (1e300, 3.0)])
             .collect();
         let range = LagRange::default();
+        let clean = estimate(&rendered[..2000], &rendered[..2000], 1e-3, range).unwrap();
+        assert!(clean.delay_ms.abs() < 0.1, "{clean:?}");
         let e = estimate(&rendered, &rendered[..2000], 1e-3, range);
-        assert!(e.is_none_or(|e| e.delay_ms.is_finite()), "{e:?}");
+        assert_eq!(e, Some(clean));
         assert!(estimate(&[(f64::NAN, 1.0)], &rendered, 1e-3, range).is_none());
         assert!(estimate(&[(-5.0, 1.0)], &rendered, 1e-3, range).is_none());
     }

@@ -331,18 +331,24 @@ fn measured_delay(
 mod tests {
     use super::*;
 
+    const MS: i64 = 1_000_000;
+
+    /// A 1 kHz run whose tick 0 is at `start_ns`.
+    fn run_from(start_ns: i64) -> NetworkedRun {
+        NetworkedRun {
+            start_ns,
+            period_ns: MS,
+            ..NetworkedRun::default()
+        }
+    }
+
     /// With commands stamped when the device is read, a stalled loop's catch-up ticks carry
     /// stamps milliseconds after their deadlines, several within one period: divided by the
     /// period, their measurements landed on later ticks (and all but the first were lost). Each
     /// now lands on the tick that sampled its command.
     #[test]
     fn a_measurement_lands_on_the_tick_that_sampled_its_command() {
-        const MS: i64 = 1_000_000;
-        let run = NetworkedRun {
-            start_ns: 50 * MS,
-            period_ns: MS,
-            ..NetworkedRun::default()
-        };
+        let run = run_from(50 * MS);
         // Ticks 3..=6 stall until 6.5 ms, then run 10 µs apart.
         let read = |k: i64| match k {
             3..=6 => 6 * MS + MS / 2 + (k - 3) * 10_000,
@@ -394,12 +400,7 @@ mod tests {
     /// `mmt report FILE.mcap` left every window unmarked; the run's report marked them.
     #[test]
     fn windows_an_outage_touches_are_marked_and_no_others() {
-        const MS: i64 = 1_000_000;
-        let run = NetworkedRun {
-            start_ns: 10_000 * MS,
-            period_ns: MS,
-            ..NetworkedRun::default()
-        };
+        let run = run_from(10_000 * MS);
         // Measurements every ms from 0 to 5 s after the start, except 2.5 s → 3.2 s.
         let measurements: Vec<MeasurementSample> = (0..5_000)
             .filter(|k| !(2_500..3_200).contains(k))
