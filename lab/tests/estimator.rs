@@ -555,6 +555,43 @@ fn a_bias_drifting_during_contact_is_not_learnt_as_stiffness() {
     assert!(e >= 15.0, "without the constant: k off by only {e:+.1} %");
 }
 
+/// The exp-1 estimator, the exp-1 tangential motion, and the exp-1 object read by an arm's
+/// sensors (`seed`).
+fn exp1_with_an_arm(seed: u64) -> (Estimator, Multisine, SlidingObjectSim) {
+    let config = SimConfig {
+        noise: SensorNoise::FRANKA_LIKE,
+        ..SimConfig::THESIS_EXP1
+    };
+    let ex = Multisine::exp1_tangential();
+    let sim =
+        SlidingObjectSim::new(config, ex.eval(0.0).0, 0.0, Pcg64::seed_from_u64(seed)).unwrap();
+    (Estimator::new(exp1_config()).unwrap(), ex, sim)
+}
+
+/// Steps `est` at `t` on one measured sample.
+fn step_measured(est: &mut Estimator, t: f64, m: &sim::Measurement, in_contact: bool) -> Update {
+    let sample = AxisSample {
+        position_m: m.position_m,
+        velocity_m_per_s: m.velocity_m_per_s,
+        force_n: m.force_n,
+    };
+    est.step(t, &[sample], in_contact)
+}
+
+/// Every parameter of the exp-1 object within `pct` % of the truth.
+fn assert_exp1_within(p: &Physical, pct: f64, seed: u64) {
+    let truth = Physical::THESIS_EXP1;
+    for (name, got, want) in [
+        ("m", p.mass_kg, truth.mass_kg),
+        ("k2", p.k_contact_n_per_m, truth.k_contact_n_per_m),
+        ("b1", p.b_ground_ns_per_m, truth.b_ground_ns_per_m),
+        ("b2", p.b_contact_ns_per_m, truth.b_contact_ns_per_m),
+    ] {
+        let off = (got / want - 1.0) * 100.0;
+        assert!(off.abs() <= pct, "seed {seed}: {name} off by {off:.1} %");
+    }
+}
+
 /// Issue 14: a ROS 2 arm's 1 kHz state stream loses about 1 % of its samples on best-effort,
 /// keep-last-1 DDS (the test arm over loopback: 990.9 Hz effective, gaps to 11 ms). Each sample
 /// arrives at its own time, but the filters advanced one fixed period per sample, so each lost
@@ -566,14 +603,7 @@ fn a_bias_drifting_during_contact_is_not_learnt_as_stiffness() {
 #[test]
 fn samples_lost_in_transport_are_not_a_new_object() {
     let lossy = |loss: f64, seed: u64| {
-        let mut est = Estimator::new(exp1_config()).unwrap();
-        let config = SimConfig {
-            noise: SensorNoise::FRANKA_LIKE,
-            ..SimConfig::THESIS_EXP1
-        };
-        let ex = Multisine::exp1_tangential();
-        let mut sim =
-            SlidingObjectSim::new(config, ex.eval(0.0).0, 0.0, Pcg64::seed_from_u64(seed)).unwrap();
+        let (mut est, ex, mut sim) = exp1_with_an_arm(seed);
         let mut transport = Pcg64::seed_from_u64(seed + 100);
         let (mut resets, mut lost) = (0, 0u64);
         let mut confident_at_end = Vec::new();
@@ -587,15 +617,7 @@ fn samples_lost_in_transport_are_not_a_new_object() {
                 lost += 1;
                 continue;
             }
-            let u = est.step(
-                t,
-                &[AxisSample {
-                    position_m: m.position_m,
-                    velocity_m_per_s: m.velocity_m_per_s,
-                    force_n: m.force_n,
-                }],
-                c,
-            );
+            let u = step_measured(&mut est, t, &m, c);
             resets += usize::from(u.new_object);
             if t >= 50.0 {
                 confident_at_end.push(est.is_confident());
@@ -618,16 +640,7 @@ fn samples_lost_in_transport_are_not_a_new_object() {
             "seed {seed}: {resets} new-object resets, {lost} lost"
         );
         assert!(confident, "seed {seed}");
-        let truth = Physical::THESIS_EXP1;
-        for (name, got, want) in [
-            ("m", p.mass_kg, truth.mass_kg),
-            ("k2", p.k_contact_n_per_m, truth.k_contact_n_per_m),
-            ("b1", p.b_ground_ns_per_m, truth.b_ground_ns_per_m),
-            ("b2", p.b_contact_ns_per_m, truth.b_contact_ns_per_m),
-        ] {
-            let off = (got / want - 1.0) * 100.0;
-            assert!(off.abs() <= 5.0, "seed {seed}: {name} off by {off:.1} %");
-        }
+        assert_exp1_within(&p, 5.0, seed);
         assert_eq!(stats.gap_restarts, 1, "{stats:?}");
         // Every lost sample but the outage's 300 (and any lost next to it, or last) filled.
         let filled = stats.filled_samples + 300;
@@ -635,5 +648,101 @@ fn samples_lost_in_transport_are_not_a_new_object() {
             (lost - 3..=lost).contains(&filled),
             "{stats:?}, {lost} lost"
         );
+    }
+}
+
+/// What the robot does at a stall of its commands, in
+/// [`a_robot_stopped_while_its_states_were_lost_is_not_a_new_object`].
+#[derive(Clone, Copy, PartialEq)]
+enum Stall {
+    /// Goes on smoothly; its states over the stall are lost.
+    Smooth,
+    /// Stops dead, then goes on from there; its states over the stop are lost.
+    StopUnseen,
+    /// Stops dead and goes on from there, every state seen.
+    StopSeen,
+    /// Stops dead, every state seen, then jumps back onto the path where it would have been.
+    StopAndJump,
+}
+
+/// The robot stops dead for a few milliseconds (it ran out of targets) and its states over the
+/// stop are lost: the same held-up link to a robot does both (`ros2_figures`' arm on a loaded
+/// machine: every false reset of its 60 s runs), and the same arm then jumps to catch up. The
+/// filters are stepped over a gap as if the motion had gone on straight (or across a jump as
+/// if it were one), so the regressors carry a motion that never happened for a few filter time
+/// constants afterwards: that transient is not a new object, and not to be learnt from. Before
+/// the rule (gaps filled, jumps learnt through), seeds 1–3, stops unseen: 7, 1 and 4 resets,
+/// mass +28–80 %, k2 +61–78 %, b2 −18–36 %, the prediction error 13–15 % of the force (0.4–0.5
+/// % with the stops seen); stops and jumps, seeds 1–2: 5 and 7 resets, k2 +77–156 %.
+#[test]
+fn a_robot_stopped_while_its_states_were_lost_is_not_a_new_object() {
+    // A stall of 4–11 ms every 0.5 s on average after 5 s; with a gap, its states and the next
+    // two are lost.
+    let run = |seed: u64, stall: Stall| {
+        let (mut est, ex, mut sim) = exp1_with_an_arm(seed);
+        let mut stalls = Pcg64::seed_from_u64(seed + 100);
+        let stops = stall != Stall::Smooth;
+        let gaps = matches!(stall, Stall::Smooth | Stall::StopUnseen);
+        // The path's time: it stands still through a stop (and goes on from there, unless the
+        // robot jumps back onto the path).
+        let (mut path_t, mut stop_left, mut gap_left, mut held) = (0.0, 0u32, 0u32, 0.0);
+        let (mut resets, mut error_sum, mut errors) = (0, 0.0, 0.0);
+        for k in 0..40_000 {
+            let t = k as f64 * 1e-3;
+            let c = t >= 0.5;
+            if t > 5.0 && gap_left == 0 && rand::Rng::random::<f64>(&mut stalls) < 1.0 / 500.0 {
+                stop_left = rand::Rng::random_range(&mut stalls, 4..12);
+                gap_left = stop_left + 2;
+                held = ex.eval(path_t).0;
+            }
+            let stopped = stops && stop_left > 0;
+            stop_left = stop_left.saturating_sub(1);
+            if !stopped || stall == Stall::StopAndJump {
+                path_t += 1e-3;
+            }
+            let (x, v) = match ex.eval(path_t) {
+                _ if stopped => (held, 0.0),
+                (x, v) => (x, if c { v } else { 0.0 }),
+            };
+            let m = sim.step(x, v, c).measured;
+            let lost = gap_left > 0 && gaps;
+            gap_left = gap_left.saturating_sub(1);
+            if lost {
+                continue;
+            }
+            let u = step_measured(&mut est, t, &m, c);
+            resets += usize::from(u.new_object);
+            if t > 30.0 {
+                error_sum += est.relative_error().unwrap_or(1.0);
+                errors += 1.0;
+            }
+        }
+        let p = est.latest().and_then(|g| g.sliding_mass()).unwrap();
+        (resets, error_sum / errors, p, est.stats())
+    };
+    for seed in [1, 2, 3] {
+        let (seen, seen_error, _, seen_stats) = run(seed, Stall::StopSeen);
+        assert_eq!((seen, seen_stats.motion_settles), (0, 0), "seed {seed}");
+        for stall in [Stall::StopUnseen, Stall::StopAndJump] {
+            let (resets, error, p, stats) = run(seed, stall);
+            assert_eq!(resets, 0, "seed {seed}: {stats:?}");
+            assert!(stats.motion_settles > 40, "seed {seed}: {stats:?}");
+            // The RLS's prediction error (learnt samples only): 0.4–1.7 % here, 0.4–0.5 % with
+            // the stops seen, 12–16 % before the rule.
+            assert!(
+                error < 0.03,
+                "seed {seed}: {error} against {seen_error} seen"
+            );
+            assert_exp1_within(&p, 3.0, seed);
+        }
+        // The same gaps over a smooth motion: the fill holds, learning goes on.
+        let (resets, error, _, stats) = run(seed, Stall::Smooth);
+        assert_eq!(
+            (resets, stats.motion_settles),
+            (0, 0),
+            "seed {seed}: {stats:?}"
+        );
+        assert!(stats.filled_samples > 400, "seed {seed}: {stats:?}");
+        assert!(error < 0.01, "seed {seed}: {error}");
     }
 }

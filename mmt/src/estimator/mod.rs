@@ -35,6 +35,7 @@ mod stats;
 use confidence::Confidence;
 pub use confidence::ConfidenceConfig;
 pub use friction::{FrictionObserver, ObservedObject};
+pub use gaps::{MAX_FILLED_PERIODS, MOTION_TOLERANCE_M, SETTLE_CUTOFF_PERIODS};
 pub use stats::{EstimatorStats, RejectionCounts};
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
@@ -46,12 +47,6 @@ use thiserror::Error;
 
 /// Most axes one estimator serves (the two tangential axes).
 pub const MAX_AXES: usize = 2;
-
-/// Longest gap in the samples, in sample periods, that the filters are stepped over with the
-/// input interpolated between the samples either side (a robot's state stream over best-effort
-/// DDS loses about 1 % of its samples, one to a few in a row). A longer gap restarts the
-/// filters at the next sample (a robot bridge stops estimating after 50 ms without a state).
-pub const MAX_FILLED_PERIODS: u32 = 50;
 
 /// Settings of one estimator.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -271,6 +266,11 @@ pub struct Estimator {
     learned_s: f64,
     /// Time [s] and tared input `(x, F)` of each axis of the last sample, for covering a gap.
     last_sample: Option<(f64, [(f64, f64); MAX_AXES])>,
+    /// Measured velocity [m/s] of each axis at the last sample.
+    last_velocity: [f64; MAX_AXES],
+    /// Until when [s] learning waits after samples that contradict a motion
+    /// ([`SETTLE_CUTOFF_PERIODS`]).
+    settle_until_s: f64,
     model_id: u32,
     /// The structure back-solved and published: `config.structure`, or the one selection chose
     /// inside it.
@@ -327,6 +327,8 @@ impl Estimator {
             observer_started: false,
             learned_s: 0.0,
             last_sample: None,
+            last_velocity: [0.0; MAX_AXES],
+            settle_until_s: f64::NEG_INFINITY,
             model_id: 0,
             structure: config.structure,
             pending: None,
@@ -405,6 +407,8 @@ impl Estimator {
         self.track_phase(now_s, in_contact, &mut update);
         if missed > MAX_FILLED_PERIODS {
             self.restart_after_gap(now_s);
+        } else if self.phase == Phase::Learning && self.contradicts_motion(now_s, &samples[..n]) {
+            self.settle(now_s);
         }
         let dt = self.config.filter.svf.sample_period_s;
         let mut inputs = [(0.0, 0.0); MAX_AXES];
@@ -426,8 +430,8 @@ impl Estimator {
         if missed <= MAX_FILLED_PERIODS {
             self.stats.filled_samples += u64::from(missed);
         }
-        self.last_sample = Some((now_s, inputs));
-        let mode = if self.phase == Phase::Learning {
+        self.remember(now_s, inputs, &samples[..n]);
+        let mode = if self.phase == Phase::Learning && now_s >= self.settle_until_s {
             self.learned_s += dt * f64::from(missed.min(MAX_FILLED_PERIODS) + 1);
             Mode::Learn
         } else {

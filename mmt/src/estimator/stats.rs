@@ -46,6 +46,11 @@ pub struct EstimatorStats {
     /// next sample and, in contact, learning waited out the onset guard again.
     #[serde(default)]
     pub gap_restarts: u64,
+    /// Samples, while learning, whose position contradicts the last sample's and the two
+    /// velocities ([`super::MOTION_TOLERANCE_M`]: the robot stopped unseen over a gap, or
+    /// jumped): learning waited for the filters to settle and the new-object detector was muted.
+    #[serde(default)]
+    pub motion_settles: u64,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).
