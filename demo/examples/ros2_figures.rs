@@ -201,6 +201,15 @@ fn main() {
             t.camera_frames.1
         );
     }
+    let (normal, tangential) = t.last.estimators;
+    for (name, stats) in [("normal", normal), ("tangential", tangential)] {
+        let Some(e) = stats else { continue };
+        println!(
+            "estimator ({name}): {} new-object resets; gaps: {} samples filled, {} restarted; {} \
+             samples contradicting the motion (learning settled)",
+            e.new_objects, e.filled_samples, e.gap_restarts, e.motion_settles
+        );
+    }
     let g = &t.last.guard;
     println!(
         "motion guard: {} ticks without a state; stale {} / workspace {} / step {} / speed {} \

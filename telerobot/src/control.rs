@@ -24,6 +24,7 @@
 
 use std::sync::Arc;
 
+use mmt::estimator::EstimatorStats;
 use node::telerobot::{CommandSample, TelerobotNode, TelerobotStats};
 use node::{BridgeSample, GuardStats, Guarded, Reading, RobotBridge, Target, TelerobotSettings};
 use protocol::telerobot_to_operator::{
@@ -62,6 +63,8 @@ pub struct LoopSnapshot {
     pub guard: GuardStats,
     /// Ticks whose bridge sample was new (the node stepped).
     pub fresh_samples: u64,
+    /// The node's estimators' counters (normal, tangential; this session's node).
+    pub estimators: (Option<EstimatorStats>, Option<EstimatorStats>),
 }
 
 /// Tick records the housekeeping thread may lag behind by: 8 s at 1 kHz.
@@ -311,6 +314,7 @@ impl State {
             inline_node_builds: self.inline_node_builds,
             guard,
             fresh_samples: self.fresh_samples,
+            estimators: node.estimator_stats(),
         }
     }
 }

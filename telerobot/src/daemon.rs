@@ -20,6 +20,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use metrics::{ParameterReport, parameter_report};
+use mmt::estimator::EstimatorStats;
 use node::telerobot::TelerobotNode;
 use node::{GuardStats, MotionLimits, TelerobotSettings};
 use protocol::telerobot_to_operator::SceneSummary;
@@ -212,6 +213,8 @@ pub struct SnapshotReport {
     pub guard: GuardStats,
     /// New robot samples the node stepped on.
     pub fresh_samples: u64,
+    /// The estimators' counters (normal, tangential).
+    pub estimators: (Option<EstimatorStats>, Option<EstimatorStats>),
 }
 
 /// A running telerobot daemon.
@@ -431,6 +434,7 @@ impl Telerobot {
                 inline_node_builds: last.inline_node_builds,
                 guard: last.guard,
                 fresh_samples: last.fresh_samples,
+                estimators: last.estimators,
             },
             command_latency: latencies.summary(),
             camera_frames: self.feed.counts(),
