@@ -33,6 +33,10 @@ pub struct Cli {
         allow_hyphen_values = true
     )]
     pub seconds: f64,
+    /// Seed of the simulated telerobot (its sensors' noise and its camera): the same seed gives
+    /// the same world, the run differing only by the machine's timing.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
     /// Where to write report.json, series.csv and the plots.
     #[arg(long, value_name = "DIR", default_value = "out/demo")]
     pub out: PathBuf,
@@ -76,6 +80,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         spin_us: args.rt.spin_us,
         realtime_priority: args.rt.realtime_priority,
         via_shim: !args.no_shim,
+        seed: args.seed,
         node: args.prior.node_config()?,
         ..DemoConfig::default()
     };
@@ -103,7 +108,7 @@ pub fn run_cmd(args: &Cli, shutdown: Shutdown, out: &mut dyn Write) -> anyhow::R
         writeln!(
             out,
             "{}",
-            banner(args.delay_ms, args.seconds, !args.no_shim)
+            banner(args.delay_ms, args.seconds, !args.no_shim, args.seed)
         )?;
         out.flush()?;
     }
@@ -159,6 +164,15 @@ mod tests {
         let args = Cli::try_parse_from(["demo"]).unwrap();
         assert_eq!((args.delay_ms, args.seconds), (400.0, 20.0));
         assert_eq!(args.out, PathBuf::from("out/demo"));
+        assert_eq!(args.seed, 1);
+        assert_eq!(
+            Cli::try_parse_from(["demo", "--seed", "7"]).unwrap().seed,
+            7
+        );
+        for bad in ["-1", "x", "1.5"] {
+            let e = Cli::try_parse_from(["demo", "--seed", bad]).unwrap_err();
+            assert!(e.to_string().contains("--seed"), "{bad}: {e}");
+        }
         for (flags, expected) in [
             (&["--seconds", "1"][..], "--seconds = 1 is out of range"),
             (&["--delay-ms", "-5"][..], "--delay-ms = -5 is out of range"),

@@ -85,7 +85,7 @@ pub fn files(
 }
 
 /// The one-line banner printed before a demo run.
-pub fn banner(delay_ms: f64, seconds: f64, via_shim: bool) -> String {
+pub fn banner(delay_ms: f64, seconds: f64, via_shim: bool, seed: u64) -> String {
     let link = if via_shim {
         format!("netem shim ({delay_ms} ms each way)")
     } else {
@@ -94,7 +94,7 @@ pub fn banner(delay_ms: f64, seconds: f64, via_shim: bool) -> String {
     let mut out = String::new();
     let _ = write!(
         out,
-        "demo: telerobot (exp-1 scene) ⇄ {link} ⇄ operator (scripted:exp1), {seconds} s over loopback QUIC…"
+        "demo: telerobot (exp-1 scene, seed {seed}) ⇄ {link} ⇄ operator (scripted:exp1), {seconds} s over loopback QUIC…"
     );
     out
 }
