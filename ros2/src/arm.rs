@@ -38,7 +38,7 @@ use crate::topics::RobotTopics;
 
 mod path;
 
-use path::{Point as PathPoint, TargetPath};
+use path::{Follower, Point as PathPoint, TargetPath};
 
 /// The arm's settings.
 #[derive(Clone, Debug)]
@@ -192,6 +192,8 @@ impl TestArm {
             bridge,
             frame_id: config.frame_id.clone(),
             path: TargetPath::new(),
+            follower: Follower::default(),
+            period_ns: (1e9 / config.rate_hz).round() as i64,
             target_twist: None,
             last_index: None,
             wall_offset_ns: graph::wall_minus_monotonic_ns(),
@@ -242,6 +244,10 @@ struct Arm {
     frame_id: String,
     /// The commanded path, played by its stamps.
     path: TargetPath,
+    /// Where the tool goes along it (back to it, across a break).
+    follower: Follower,
+    /// The arm's period \[ns\].
+    period_ns: i64,
     /// The newest commanded twist: (stamp, velocity).
     target_twist: Option<(i64, [f64; 3])>,
     /// The last tick's index: the world steps once per period, skipped ticks included.
@@ -274,10 +280,16 @@ impl Arm {
 
     fn tick(&mut self, now: i64, steps: u64) {
         self.take_targets();
-        let (position, velocity) = self.path.at(now + self.wall_offset_ns).unwrap_or_else(|| {
-            let here = node::RobotBridge::tool_m(&self.bridge).unwrap_or_default();
-            (here, [0.0; 3])
-        });
+        let here = node::RobotBridge::tool_m(&self.bridge).unwrap_or_default();
+        // The tool's motion over each period since the last tick (more than one when this
+        // thread was held up).
+        let mut tool = (here, [0.0; 3]);
+        for back in (0..steps as i64).rev() {
+            let t = now - back * self.period_ns + self.wall_offset_ns;
+            let (x, v) = self.path.at(t).unwrap_or((here, [0.0; 3]));
+            tool = self.follower.step(x, v, self.period_ns as f64 * 1e-9);
+        }
+        let (position, velocity) = tool;
         // Held up for `steps` periods, the robot's own controller (which does not stall with
         // this thread) went to the target along the way ([`SimBridge::step_periods`]).
         let target = Target {
