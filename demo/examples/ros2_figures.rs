@@ -222,12 +222,14 @@ fn main() {
         g.faults
     );
     println!(
-        "test arm: {} ticks, {} targets, {} states, {} camera frames; loop p99 {:.0} µs, max {:.0} \
-         µs",
+        "test arm: {} ticks, {} targets, {} states, {} camera frames; {} breaks in its path, {} \
+         ticks returning to it; loop p99 {:.0} µs, max {:.0} µs",
         arm.ticks,
         arm.targets,
         arm.states,
         arm.frames,
+        arm.path_breaks.0,
+        arm.path_breaks.1,
         arm.timing.period.p99_us,
         arm.timing.period.max_us
     );

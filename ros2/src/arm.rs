@@ -99,6 +99,9 @@ pub struct ArmReport {
     pub frames: u64,
     /// Publications the middleware refused.
     pub publish_errors: u64,
+    /// Breaks in the commanded path the tool returned across, and the periods it spent
+    /// returning ([`path::Follower`]).
+    pub path_breaks: (u64, u64),
     /// Its loop's timing.
     pub timing: rt::TimingReport,
 }
@@ -290,6 +293,7 @@ impl Arm {
             tool = self.follower.step(x, v, self.period_ns as f64 * 1e-9);
         }
         let (position, velocity) = tool;
+        self.report.path_breaks = self.follower.breaks();
         // Held up for `steps` periods, the robot's own controller (which does not stall with
         // this thread) went to the target along the way ([`SimBridge::step_periods`]).
         let target = Target {

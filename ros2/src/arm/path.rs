@@ -111,8 +111,8 @@ const ON_PATH_M: f64 = 5e-6;
 /// Where the tool actually goes: the path exactly while the path is one an arm can follow; across
 /// a break in it (it holds after running out of targets, or jumps to a newer target) the tool
 /// neither stops dead nor jumps, which no arm does, but returns to the path as an impedance
-/// controller holding a moved equilibrium would: critically damped at [`RETURN_OMEGA`], its
-/// acceleration limited to [`MAX_ACCELERATION`]. Its position and velocity always agree (each
+/// controller holding a moved equilibrium would: critically damped at [`RETURN_OMEGA`] about the
+/// path (whose acceleration is fed forward), its acceleration limited to [`MAX_ACCELERATION`]. Its position and velocity always agree (each
 /// period moves it by the mean of its two velocities).
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Follower {
@@ -120,12 +120,22 @@ pub(super) struct Follower {
     state: Option<([f64; 3], [f64; 3])>,
     /// Returning to the path after a break.
     returning: bool,
+    /// Breaks, and periods spent returning.
+    breaks: (u64, u64),
+    /// The path's velocity at the last period (its acceleration is fed forward).
+    last_v_r: [f64; 3],
 }
 
 impl Follower {
+    /// Breaks in the path, and periods spent returning to it.
+    pub(super) fn breaks(&self) -> (u64, u64) {
+        self.breaks
+    }
+
     /// The tool's position and velocity after one period `dt_s` toward the path's point
     /// `(x_r, v_r)`.
     pub(super) fn step(&mut self, x_r: [f64; 3], v_r: [f64; 3], dt_s: f64) -> ([f64; 3], [f64; 3]) {
+        let last_v_r = std::mem::replace(&mut self.last_v_r, v_r);
         let Some((x, v)) = self.state else {
             self.state = Some((x_r, v_r));
             return (x_r, v_r);
@@ -138,10 +148,22 @@ impl Follower {
             self.state = Some((x_r, v_r));
             return (x_r, v_r);
         }
+        if !self.returning {
+            self.breaks.0 += 1;
+        }
+        self.breaks.1 += 1;
         self.returning = true;
         let w = RETURN_OMEGA;
-        let mut a: [f64; 3] =
-            std::array::from_fn(|k| w * w * (x_r[k] - x[k]) + 2.0 * w * (v_r[k] - v[k]));
+        // The path's own acceleration fed forward (a break's is not an arm's: limited), so the
+        // tool converges onto an accelerating path instead of lagging it.
+        let a_r =
+            |k: usize| ((v_r[k] - last_v_r[k]) / dt_s).clamp(-MAX_ACCELERATION, MAX_ACCELERATION);
+        // The spring and damper act on where the tool would be at the path's time without them.
+        let mut a: [f64; 3] = std::array::from_fn(|k| {
+            let v_free = v[k] + a_r(k) * dt_s;
+            let x_free = x[k] + 0.5 * (v[k] + v_free) * dt_s;
+            a_r(k) + w * w * (x_r[k] - x_free) + 2.0 * w * (v_r[k] - v_free)
+        });
         let norm = a.iter().map(|c| c * c).sum::<f64>().sqrt();
         if norm > MAX_ACCELERATION {
             a = a.map(|c| c * MAX_ACCELERATION / norm);
@@ -249,6 +271,23 @@ mod tests {
         }
         let x = hold[0] + 1e-3 + 0.02 * 401.0 * dt;
         assert_eq!(f.step([x, 0.0, 0.0], [0.02, 0.0, 0.0], dt).0[0], x);
+        prev = ([x, 0.0, 0.0], [0.02, 0.0, 0.0]);
+        // A jump onto a path accelerating at 2 m/s²: caught up within 0.3 s, not lagged behind.
+        let (x0, a) = (x + 2e-3, 2.0);
+        let on = |k: i64| {
+            let t = k as f64 * dt;
+            (
+                [x0 + 0.02 * t + 0.5 * a * t * t, 0.0, 0.0],
+                [0.02 + a * t, 0.0, 0.0],
+            )
+        };
+        for k in 1..=300 {
+            let (x, v) = on(k);
+            check(&mut f, &mut prev, x, v);
+        }
+        let (x, v) = on(301);
+        assert_eq!(f.step(x, v, dt), (x, v), "on the accelerating path");
+        assert_eq!(f.breaks().0, 3);
     }
 
     /// Before the first target's turn there is no path; past the newest target it goes on along
