@@ -14,7 +14,7 @@
 //! the path within about `5/ω` (35 ms), its acceleration bounded by the break's size. Faster is
 //! harsher on the arm; slower made the telerobot lag: with ω = 50 the end-to-end delay measured
 //! over loopback rose by 5–15 ms on this loaded machine (the output was in a blend a third of the
-//! time); at 150 the delay tests of the time passed. A break is
+//! time); at 150 the delay tests then in use passed. A break is
 //! a step away from where the output's own velocity leads (beyond what [`MAX_ACCEL`] explains in
 //! one tick), or a step in velocity beyond that acceleration. While no break has happened the
 //! path passes through bit for bit.

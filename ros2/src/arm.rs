@@ -278,6 +278,7 @@ impl Arm {
             self.tick(tick.deadline_ns, steps);
         }
         self.report.timing = timing.report();
+        self.report.path_breaks = self.follower.breaks();
         self.report
     }
 
@@ -293,7 +294,6 @@ impl Arm {
             tool = self.follower.step(x, v, self.period_ns as f64 * 1e-9);
         }
         let (position, velocity) = tool;
-        self.report.path_breaks = self.follower.breaks();
         // Held up for `steps` periods, the robot's own controller (which does not stall with
         // this thread) went to the target along the way ([`SimBridge::step_periods`]).
         let target = Target {

@@ -112,8 +112,10 @@ const ON_PATH_M: f64 = 5e-6;
 /// a break in it (it holds after running out of targets, or jumps to a newer target) the tool
 /// neither stops dead nor jumps, which no arm does, but returns to the path as an impedance
 /// controller holding a moved equilibrium would: critically damped at [`RETURN_OMEGA`] about the
-/// path (whose acceleration is fed forward), its acceleration limited to [`MAX_ACCELERATION`]. Its position and velocity always agree (each
-/// period moves it by the mean of its two velocities).
+/// path (whose acceleration is fed forward), its acceleration limited to [`MAX_ACCELERATION`].
+/// Its position and velocity always agree (each period moves it by the mean of its two
+/// velocities). The telerobot's `node::continuity` blends its own path's breaks the same way
+/// (an offset decaying at 150 rad/s, no acceleration limit); this is the arm's side.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Follower {
     /// The tool's position and velocity, once it has any.
