@@ -140,6 +140,8 @@ pub struct ExperimentReport {
     pub recontact_error_pct: Option<f64>,
     /// What the operator rendered before its first model (`None`: nothing).
     pub prior: Option<Prior>,
+    /// The error of each stage: before a model (the prior), the reduced model, the whole one.
+    pub stage_errors: onset::StageErrors,
     /// The tangential estimator's a-priori reconstruction error while confident [%].
     pub reconstruction_error_pct: Option<f64>,
     /// Contact-switch latency.
@@ -250,6 +252,7 @@ pub fn analyse(info: &RunInfo, s: &Series, nodes: NodeInfo) -> ExperimentReport 
         settle_s: onset::settle_s(s),
         recontact_error_pct: onset::recontact_error_pct(s),
         prior: nodes.prior,
+        stage_errors: onset::stage_errors(s),
         reconstruction_error_pct: (s.reconstruction.0 > 0.0)
             .then(|| 100.0 * (s.reconstruction.1 / s.reconstruction.0).sqrt()),
         contact_switch_latency_ms: latency(s),

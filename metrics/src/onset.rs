@@ -64,6 +64,48 @@ pub fn recontact_error_pct(s: &Series) -> Option<f64> {
     (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt())
 }
 
+/// The error of each stage of what the operator renders, over the ticks in true contact.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct StageErrors {
+    /// Before any model of the object: the prior (or nothing) \[%\].
+    pub prior_pct: Option<f64>,
+    /// The telerobot's reduced first model (massless) \[%\].
+    pub reduced_pct: Option<f64>,
+    /// The whole model \[%\].
+    pub whole_pct: Option<f64>,
+    /// Time in contact in each stage, in that order \[s\].
+    pub seconds: [f64; 3],
+}
+
+/// The RMS error of each stage ([`StageErrors`]): a tick in true contact is the prior's while
+/// the operator renders no model, the reduced model's while it renders that, the whole
+/// model's otherwise; each stage's error is relative to the measured force in its own ticks.
+pub fn stage_errors(s: &Series) -> StageErrors {
+    let mut sums = [(0.0, 0.0, 0usize); 3];
+    for i in 0..s.len() {
+        let (Some(true), Some(m)) = (s.contact_true[i], s.measured[i]) else {
+            continue;
+        };
+        let rendering = s.rendering.get(i).copied().unwrap_or(false);
+        let stage = match (rendering, s.reduced.get(i).copied().unwrap_or(false)) {
+            (false, _) => 0,
+            (true, true) => 1,
+            (true, false) => 2,
+        };
+        let (e2, m2, n) = &mut sums[stage];
+        *e2 += vec3::norm2(vec3::sub(s.rendered[i], m));
+        *m2 += vec3::norm2(m);
+        *n += 1;
+    }
+    let pct = |(e2, m2, _): (f64, f64, usize)| (m2 > 0.0).then(|| 100.0 * (e2 / m2).sqrt());
+    StageErrors {
+        prior_pct: pct(sums[0]),
+        reduced_pct: pct(sums[1]),
+        whole_pct: pct(sums[2]),
+        seconds: sums.map(|(_, _, n)| n as f64 * s.dt_s()),
+    }
+}
+
 /// The error in ticks `start..end` \[%\]; `None` when the measured force's RMS is 0.05 N or less.
 pub(crate) fn window_pct(s: &Series, start: usize, end: usize) -> Option<f64> {
     let (e2, m2) = sums(s, start, end);
@@ -157,5 +199,33 @@ mod tests {
         assert!((e - 100.0 * 0.125_f64.sqrt()).abs() < 1e-9, "{e}");
         let once = series(3000, |i| i >= 100, |_| 1.0);
         assert_eq!(recontact_error_pct(&once), None);
+    }
+
+    #[test]
+    fn each_stage_is_judged_on_its_own_ticks_in_contact() {
+        // Contact from tick 100; no model until 600 (renders 0.5 N: a soft prior), the reduced
+        // model until 1,000 (0.9 N), the whole one after (1 N), and a break 2,000–2,499 that
+        // renders 3 N out of contact (not judged).
+        let contact = |i: usize| i >= 100 && !(2000..2500).contains(&i);
+        let mut s = series(4000, contact, |i| match i {
+            0..600 => 0.5,
+            600..1000 => 0.9,
+            2000..2500 => 3.0,
+            _ => 1.0,
+        });
+        s.rendering = (0..4000).map(|i| i >= 600).collect();
+        s.reduced = (0..4000).map(|i| (600..1000).contains(&i)).collect();
+        let e = stage_errors(&s);
+        let close = |a: Option<f64>, b: f64| (a.unwrap() - b).abs() < 1e-9;
+        assert!(close(e.prior_pct, 50.0), "{e:?}");
+        assert!(close(e.reduced_pct, 10.0), "{e:?}");
+        assert!(close(e.whole_pct, 0.0), "{e:?}");
+        assert!((e.seconds[0] - 0.5).abs() < 1e-12 && (e.seconds[1] - 0.4).abs() < 1e-12);
+        assert!((e.seconds[2] - 2.5).abs() < 1e-9, "{e:?}");
+        // Without a reduced stage or a prior stage: None, not 0.
+        s.rendering = vec![true; 4000];
+        s.reduced = vec![false; 4000];
+        let e = stage_errors(&s);
+        assert_eq!((e.prior_pct, e.reduced_pct), (None, None));
     }
 }

@@ -147,6 +147,23 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
         None => "none: free space until the first model".to_owned(),
     };
     row(out, "prior rendered before the first model", prior, "");
+    let g = &r.stage_errors;
+    let stage = |pct: Option<f64>, s: f64| match pct {
+        Some(p) => format!("{p:.1} % ({s:.2} s)"),
+        None => "—".to_owned(),
+    };
+    let stages = format!(
+        "{} / {} / {}",
+        stage(g.prior_pct, g.seconds[0]),
+        stage(g.reduced_pct, g.seconds[1]),
+        stage(g.whole_pct, g.seconds[2])
+    );
+    row(
+        out,
+        "error in contact: prior / reduced / whole model",
+        stages,
+        "",
+    );
     row(
         out,
         "estimator reconstruction error",
