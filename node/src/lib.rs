@@ -47,6 +47,7 @@ pub use settings::{
 };
 pub use tracker::{ContactTracker, Tracked};
 pub use wire::{
-    cloud_to_wire, contact_state_to_wire, gated_from_wire, parameter_set, structure_from_wire,
-    structure_to_wire, surface_frame_from_wire, surface_frame_to_wire,
+    cloud_to_wire, contact_state_to_wire, gated_from_wire, parameter_set, prior_from_wire,
+    prior_to_wire, structure_from_wire, structure_to_wire, surface_frame_from_wire,
+    surface_frame_to_wire,
 };

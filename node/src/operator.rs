@@ -60,6 +60,21 @@ pub struct OperatorConfig {
     /// free space). Default: [`Prior::generic`].
     #[serde(default)]
     pub prior: Option<Prior>,
+    /// Render the scene's prior instead of [`OperatorConfig::prior`] when the scene declares
+    /// one (`OperatorSettings::prior`, from the `Welcome`). Default: true (`--prior scene`).
+    #[serde(default)]
+    pub prefer_scene_prior: bool,
+}
+
+impl OperatorConfig {
+    /// The prior this configuration renders with `settings`: the scene's when it declares one
+    /// and [`OperatorConfig::prefer_scene_prior`] is set, else [`OperatorConfig::prior`].
+    pub fn prior_for(&self, settings: &OperatorSettings) -> Option<Prior> {
+        match settings.prior {
+            Some(scene) if self.prefer_scene_prior => Some(scene),
+            _ => self.prior,
+        }
+    }
 }
 
 impl Default for OperatorConfig {
@@ -70,6 +85,7 @@ impl Default for OperatorConfig {
             sync_gain: 0.1,
             replay_on_model_start: true,
             prior: Some(Prior::generic()),
+            prefer_scene_prior: true,
         }
     }
 }
@@ -129,6 +145,8 @@ pub struct OperatorNode {
     /// The hand-over's length [ticks].
     handover_ticks: u32,
     episode_onset_ns: Option<i64>,
+    /// What is rendered before the first model ([`OperatorConfig::prior_for`]).
+    prior: Option<Prior>,
     /// The model being rendered: its id, and whether it is the reduced (massless) stage.
     model_stage: Option<(u32, bool)>,
     rendering: bool,
@@ -145,11 +163,12 @@ impl OperatorNode {
         device_m: [f64; 3],
     ) -> Result<Self, NodeError> {
         let r = settings.renderer;
+        let prior = config.prior_for(&settings);
         let normal = match settings.normal {
             Structure::Free => None,
             _ => {
                 let mut renderer = KelvinVoigtRenderer::new(r)?;
-                if let Some(prior) = config.prior {
+                if let Some(prior) = prior {
                     prior.validate()?;
                     let normal = Params::KelvinVoigt(prior.normal);
                     let gated = gate_physical(Structure::KelvinVoigt, &normal)
@@ -167,7 +186,7 @@ impl OperatorNode {
             })
         };
         let mut prior_axes = [tangent()?, tangent()?];
-        let prior_tangential = match config.prior {
+        let prior_tangential = match prior {
             Some(prior) if settings.tangential != Structure::Free => {
                 prior_targets(&mut prior_axes, settings.tangential, &prior)?;
                 PriorStage::Prior
@@ -187,6 +206,7 @@ impl OperatorNode {
             prior_axes,
             handover_ticks: r.handover_ticks(),
             episode_onset_ns: None,
+            prior,
             model_stage: None,
             rendering: false,
             remote_in_contact: false,
@@ -541,6 +561,12 @@ impl OperatorNode {
     /// The configuration.
     pub fn config(&self) -> &OperatorConfig {
         &self.config
+    }
+
+    /// What the node renders before its first model of an object: the scene's prior, its
+    /// configuration's, or none ([`OperatorConfig::prior_for`]).
+    pub fn prior(&self) -> Option<Prior> {
+        self.prior
     }
 
     /// The settings.

@@ -11,12 +11,13 @@
 use mmt::contact::{ProxyConfig, ProxyError};
 use mmt::estimator::EstimatorConfig;
 use mmt::model::Structure;
+use mmt::model::prior::Prior;
 use mmt::render::RendererConfig;
 use protocol::telerobot_to_operator::SceneSummary;
 use serde::{Deserialize, Serialize};
 
 use crate::guard::MotionLimits;
-use crate::wire::structure_from_wire;
+use crate::wire::{prior_from_wire, structure_from_wire};
 
 /// The control rates the loops run at \[Hz\].
 pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 100.0..=10_000.0;
@@ -45,6 +46,10 @@ pub struct TelerobotSettings {
     /// What the robot may be told to do, whatever the operator sends (the scene's `[limits]`,
     /// or [`MotionLimits::around`] its surface point).
     pub limits: MotionLimits,
+    /// The scene's prior of its object, for the operator (the `Welcome` carries it); the
+    /// telerobot itself does not use it.
+    #[serde(default)]
+    pub prior: Option<Prior>,
 }
 
 /// A plane through `point_m` with outward unit `normal`, world frame.
@@ -76,6 +81,7 @@ impl TelerobotSettings {
                 rate_hz: self.proxy.rate_hz,
                 ..RendererConfig::default()
             },
+            prior: self.prior,
         }
     }
 }
@@ -94,6 +100,10 @@ pub struct OperatorSettings {
     pub tangential: Structure,
     /// Renderer settings (the operator's device damping enters here).
     pub renderer: RendererConfig,
+    /// The scene's prior of its object, when it declares one: what the operator renders before
+    /// the first model unless its user chose another (`operator::PriorChoice`).
+    #[serde(default)]
+    pub prior: Option<Prior>,
 }
 
 /// A `Welcome` the operator cannot run with.
@@ -105,6 +115,9 @@ pub enum SettingsError {
     /// The contact detector's radii do not make a detector.
     #[error("the telerobot's contact detector: {0}")]
     Proxy(#[from] ProxyError),
+    /// The scene's prior is not a passive model.
+    #[error("the telerobot's scene {0}")]
+    Prior(#[from] mmt::model::prior::PriorError),
 }
 
 impl OperatorSettings {
@@ -133,6 +146,7 @@ impl OperatorSettings {
                 rate_hz: rate,
                 ..RendererConfig::default()
             },
+            prior: summary.prior.as_ref().map(prior_from_wire).transpose()?,
         })
     }
 }
@@ -154,6 +168,7 @@ mod tests {
             cloud_rate_hz: Some(30.0),
             left_out: vec![],
             proxy_radii_m: radii,
+            prior: None,
         }
     }
 

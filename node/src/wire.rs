@@ -5,6 +5,7 @@ use mmt::cloud::CloudFrame;
 use mmt::contact::SurfaceFrame;
 use mmt::model::backsolve::Params;
 use mmt::model::gates::{GateRejection, Gated, gate_physical};
+use mmt::model::prior::{Prior, PriorError, PriorSource};
 use mmt::model::{KelvinVoigt, Physical, Structure};
 use mmt::vec3;
 use protocol::telerobot_to_operator as wire;
@@ -38,6 +39,42 @@ pub fn structure_from_wire(s: ModelStructure) -> Structure {
             friction,
         },
     }
+}
+
+/// The wire form of a scene's prior.
+pub fn prior_to_wire(p: &Prior) -> wire::ScenePrior {
+    let t = &p.tangential;
+    wire::ScenePrior {
+        normal_k_n_per_m: p.normal.k_n_per_m,
+        normal_b_ns_per_m: p.normal.b_ns_per_m,
+        mass_kg: t.mass_kg,
+        k_ground_n_per_m: t.k_ground_n_per_m,
+        b_ground_ns_per_m: t.b_ground_ns_per_m,
+        k_contact_n_per_m: t.k_contact_n_per_m,
+        b_contact_ns_per_m: t.b_contact_ns_per_m,
+        coulomb_n: t.coulomb_n,
+    }
+}
+
+/// A received scene prior, checked to be passive ([`Prior::validate`]).
+pub fn prior_from_wire(p: &wire::ScenePrior) -> Result<Prior, PriorError> {
+    let prior = Prior {
+        normal: KelvinVoigt {
+            k_n_per_m: p.normal_k_n_per_m,
+            b_ns_per_m: p.normal_b_ns_per_m,
+        },
+        tangential: Physical {
+            mass_kg: p.mass_kg,
+            k_ground_n_per_m: p.k_ground_n_per_m,
+            b_ground_ns_per_m: p.b_ground_ns_per_m,
+            k_contact_n_per_m: p.k_contact_n_per_m,
+            b_contact_ns_per_m: p.b_contact_ns_per_m,
+            coulomb_n: p.coulomb_n,
+        },
+        source: PriorSource::Scene,
+    };
+    prior.validate()?;
+    Ok(prior)
 }
 
 /// The wire form of a gated set: only the terms its structure has.

@@ -387,3 +387,53 @@ fn a_new_sessions_node_keeps_the_side_of_the_surface_the_tool_came_from() {
     assert!(contact_at(&mut next, &mut t, &again));
     assert_eq!(next.stats().contact_onsets, 2);
 }
+
+/// Issue 13 item 5: the operator renders the prior the telerobot's scene declares (it comes in
+/// the `Welcome`) unless its user chose another; a peer's prior that is not passive is refused
+/// naming the field.
+#[test]
+fn the_operator_renders_the_scenes_prior_unless_told_otherwise() {
+    use mmt::model::prior::{self, Guess, Prior, PriorSource};
+    let mut scene = Scene::exp1();
+    scene.prior = Some(Guess {
+        k_contact_n_per_m: Some(300.0),
+        b_contact_ns_per_m: Some(10.0),
+        ..Guess::default()
+    });
+    let settings = OperatorSettings::from_welcome(&scene.summary()).unwrap();
+    let rendered = |settings: OperatorSettings, value: &str| {
+        let choice = prior::parse(value).unwrap();
+        let config = OperatorConfig {
+            prior: choice.prior,
+            prefer_scene_prior: choice.prefer_scene,
+            ..OperatorConfig::default()
+        };
+        OperatorNode::new(settings, config, [0.0; 3])
+            .unwrap()
+            .prior()
+    };
+    let by_default = OperatorNode::new(settings, OperatorConfig::default(), [0.0; 3]).unwrap();
+    let scenes = by_default.prior().unwrap();
+    assert_eq!(scenes.source, PriorSource::Scene);
+    assert_eq!(
+        (scenes.normal.k_n_per_m, scenes.normal.b_ns_per_m),
+        (300.0, 10.0)
+    );
+    assert_eq!(rendered(settings, "scene"), Some(scenes));
+    assert_eq!(rendered(settings, "generic"), Some(Prior::generic()));
+    assert_eq!(rendered(settings, "none"), None);
+    assert_eq!(
+        rendered(settings, "800,20").unwrap().normal.k_n_per_m,
+        800.0
+    );
+    // A scene that declares none: the generic prior.
+    let plain = OperatorSettings::from_welcome(&Scene::exp1().summary()).unwrap();
+    assert_eq!(rendered(plain, "scene"), Some(Prior::generic()));
+    // A peer's prior that is not passive.
+    let mut summary = scene.summary();
+    summary.prior.as_mut().unwrap().mass_kg = -1.0;
+    let e = OperatorSettings::from_welcome(&summary)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tangential.mass_kg = -1"), "{e}");
+}

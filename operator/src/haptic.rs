@@ -185,7 +185,7 @@ impl HapticLoop {
             safety: self.safety.stats(),
             force_record: *self.device.force_record(),
             node: self.node.stats(),
-            prior: self.node.config().prior,
+            prior: self.node.prior(),
             renderers: self.node.renderer_stats(),
             device: self.device,
             ticks: state.ticks,

@@ -73,6 +73,32 @@ pub struct SceneSummary {
     /// operator's local detector uses the same, so both make and break contact at the same
     /// distance from the cloud.
     pub proxy_radii_m: [f64; 3],
+    /// The scene's prior of its object, when it declares one (protocol 4).
+    pub prior: Option<ScenePrior>,
+}
+
+/// A scene's prior of its object (issue 13: an informed guess, e.g. from vision): what the
+/// operator renders from the first tick of contact until the telerobot's first model, unless
+/// its user chose another. Already weighed against the generic soft-object class by the
+/// telerobot (`mmt::model::prior::Guess::prior`); the operator checks it is passive.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScenePrior {
+    /// Along the normal: stiffness `k` \[N/m\].
+    pub normal_k_n_per_m: f64,
+    /// Along the normal: damping `b` \[N·s/m\].
+    pub normal_b_ns_per_m: f64,
+    /// Along the tangents: mass `m` \[kg\].
+    pub mass_kg: f64,
+    /// Ground spring `k1` \[N/m\].
+    pub k_ground_n_per_m: f64,
+    /// Ground damper `b1` \[N·s/m\].
+    pub b_ground_ns_per_m: f64,
+    /// Contact spring `k2` \[N/m\].
+    pub k_contact_n_per_m: f64,
+    /// Contact damper `b2` \[N·s/m\].
+    pub b_contact_ns_per_m: f64,
+    /// Coulomb friction level `Fc` \[N\].
+    pub coulomb_n: f64,
 }
 
 /// Refuses a `Hello`.
@@ -394,7 +420,21 @@ impl CheckFinite for Message {
 fn check_scene(s: &SceneSummary) -> Result<(), NonFinite> {
     finite::scalar("control_rate_hz", s.control_rate_hz)?;
     finite::opt_scalar("cloud_rate_hz", s.cloud_rate_hz)?;
-    finite::vector("proxy_radii_m", &s.proxy_radii_m)
+    finite::vector("proxy_radii_m", &s.proxy_radii_m)?;
+    let Some(p) = &s.prior else { return Ok(()) };
+    let terms = [
+        ("prior.normal_k_n_per_m", p.normal_k_n_per_m),
+        ("prior.normal_b_ns_per_m", p.normal_b_ns_per_m),
+        ("prior.mass_kg", p.mass_kg),
+        ("prior.k_ground_n_per_m", p.k_ground_n_per_m),
+        ("prior.b_ground_ns_per_m", p.b_ground_ns_per_m),
+        ("prior.k_contact_n_per_m", p.k_contact_n_per_m),
+        ("prior.b_contact_ns_per_m", p.b_contact_ns_per_m),
+        ("prior.coulomb_n", p.coulomb_n),
+    ];
+    terms
+        .into_iter()
+        .try_for_each(|(name, v)| finite::scalar(name, v))
 }
 
 fn check_parameters(p: &Parameters) -> Result<(), NonFinite> {

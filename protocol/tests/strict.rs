@@ -153,6 +153,7 @@ fn nan_is_rejected_in_every_float_field() {
             cloud_rate_hz: Some(f64::MAX),
             left_out: vec![],
             proxy_radii_m: [f64::MAX; 3],
+            prior: None,
         },
     });
     assert_eq!(

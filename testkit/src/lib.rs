@@ -86,6 +86,7 @@ pub fn wall_summary() -> SceneSummary {
         cloud_rate_hz: None,
         left_out: vec![],
         proxy_radii_m: [0.004, 0.006, 0.03],
+        prior: None,
     }
 }
 

@@ -3,7 +3,7 @@
 use crate::experiment::{ExperimentConfig, ExperimentError, Kind, run_recorded};
 use anyhow::{Context, Result};
 use clap::Args;
-use mmt::model::prior::{Prior, PriorSource};
+use mmt::model::prior::{Choice, Prior, PriorSource};
 use sim::scene::Scene;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -46,11 +46,12 @@ pub struct ExperimentArgs {
     /// that bridges holes in the cloud: the baseline of the camera figures.
     #[arg(long)]
     thesis_proxy: bool,
-    /// What the operator renders before the first model: generic (the default: the centre of
-    /// the soft-object class), none (free space), truth (the scene's true object: the floor a
-    /// perfect prior sets), or K,B (the normal's stiffness and damping in N/m and N·s/m; the
-    /// tangents keep the generic object).
-    #[arg(long, default_value = "generic")]
+    /// What the operator renders before the first model: scene (the default: the scene's
+    /// [prior] when it declares one, else generic), generic (the centre of the soft-object
+    /// class), none (free space), truth (the scene's true object: the floor a perfect prior
+    /// sets), or K,B (the normal's stiffness and damping in N/m and N·s/m; the tangents keep the
+    /// generic object).
+    #[arg(long, default_value = "scene")]
     prior: String,
     /// Uniform jitter each way [ms] (order kept).
     #[arg(long, default_value_t = 0.0)]
@@ -192,7 +193,7 @@ pub fn run_cmd(args: ExperimentArgs) -> Result<()> {
 }
 
 /// The `--prior` value: [`mmt::model::prior::parse`]'s, or `truth` (the scene's own object).
-fn prior(value: &str, scene: &Scene) -> Result<Option<Prior>> {
+fn prior(value: &str, scene: &Scene) -> Result<Choice> {
     if value == "truth" {
         let env = &scene.environment;
         let prior = Prior {
@@ -201,7 +202,10 @@ fn prior(value: &str, scene: &Scene) -> Result<Option<Prior>> {
             ..Prior::given(env.k_contact_n_per_m, env.b_contact_ns_per_m)?
         };
         prior.validate()?;
-        return Ok(Some(prior));
+        return Ok(Choice {
+            prior: Some(prior),
+            prefer_scene: false,
+        });
     }
     mmt::model::prior::parse(value).map_err(|e| anyhow::anyhow!("--prior {value}: {e}"))
 }
@@ -233,7 +237,9 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.thesis_proxy = args.thesis_proxy;
-    config.operator.prior = prior(&args.prior, &config.scene)?;
+    let choice = prior(&args.prior, &config.scene)?;
+    config.operator.prior = choice.prior;
+    config.operator.prefer_scene_prior = choice.prefer_scene;
     config.jitter_ms = args.jitter_ms;
     link_faults(&mut config, args)?;
     Ok(config)
@@ -268,9 +274,15 @@ mod tests {
     #[test]
     fn the_prior_flag_names_what_it_wants() {
         let scene = Scene::exp1();
-        assert_eq!(prior("generic", &scene).unwrap(), Some(Prior::generic()));
-        assert_eq!(prior("none", &scene).unwrap(), None);
-        let truth = prior("truth", &scene).unwrap().unwrap();
+        assert_eq!(
+            prior("generic", &scene).unwrap().prior,
+            Some(Prior::generic())
+        );
+        assert_eq!(prior("none", &scene).unwrap().prior, None);
+        assert!(prior("scene", &scene).unwrap().prefer_scene);
+        let truth = prior("truth", &scene).unwrap();
+        assert!(!truth.prefer_scene);
+        let truth = truth.prior.unwrap();
         assert_eq!(
             (
                 truth.normal.k_n_per_m,
@@ -281,11 +293,11 @@ mod tests {
         );
         assert_eq!(truth.tangential, scene.environment.physical());
         // K,B values are mmt::model::prior::parse's (tested there); here, that the flag is named.
-        assert!(prior("800, 20", &scene).unwrap().is_some());
+        assert!(prior("800, 20", &scene).unwrap().prior.is_some());
         for bad in ["stiff", "800", "800,x"] {
             let e = prior(bad, &scene).unwrap_err().to_string();
             assert!(
-                e.starts_with(&format!("--prior {bad}: expected generic")),
+                e.starts_with(&format!("--prior {bad}: expected scene")),
                 "{e}"
             );
         }

@@ -427,7 +427,7 @@ impl Harness {
             operator: self.operator.node.stats(),
             shadow: self.operator.shadow.stats(),
             telerobot: telerobot.stats(),
-            prior: self.operator.node.config().prior,
+            prior: self.operator.node.prior(),
         };
         if let Some(r) = self.record {
             r.finish(self.ticks as i64 * self.period_ns, self.ticks, &nodes);

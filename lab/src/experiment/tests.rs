@@ -2,7 +2,7 @@
 
 use super::*;
 use mmt::model::backsolve::Confidence;
-use mmt::model::prior::Prior;
+use mmt::model::prior::{Guess, Prior, PriorSource};
 use mmt::vec3;
 
 fn run_with(
@@ -397,6 +397,57 @@ fn a_prior_far_from_the_truth_costs_accuracy_for_a_bounded_time_only() {
             assert!(after <= 5.0, "{kind:?} ×{scale}: after stable {after:.2} %");
         }
     }
+}
+
+/// Issue 13 item 5: a scene's `[prior]` is what the operator renders from the first tick of
+/// contact (unless told otherwise), exactly as the same prior given directly; the report names
+/// it and gives the error of each stage.
+#[test]
+fn a_scene_prior_is_rendered_from_the_first_tick_and_reported_with_each_stage() {
+    let truth = |c: &ExperimentConfig| {
+        let env = c.scene.environment;
+        Guess {
+            mass_kg: Some(env.mass_kg),
+            k_ground_n_per_m: Some(env.k_ground_n_per_m),
+            b_ground_ns_per_m: Some(env.b_ground_ns_per_m),
+            k_contact_n_per_m: Some(env.k_contact_n_per_m),
+            b_contact_ns_per_m: Some(env.b_contact_ns_per_m),
+            coulomb_friction_n: Some(env.coulomb_friction_n),
+            spread: 0.0,
+        }
+    };
+    let (s_scene, scene) = run_with(Kind::Exp1, 4.0, |c| c.scene.prior = Some(truth(c)));
+    let (s_given, given) = run_with(Kind::Exp1, 4.0, |c| {
+        let mut prior = truth(c).prior().unwrap();
+        prior.source = PriorSource::Truth;
+        c.operator.prior = Some(prior);
+    });
+    let (_, generic) = run_with(Kind::Exp1, 4.0, |c| {
+        c.scene.prior = Some(truth(c));
+        c.operator.prefer_scene_prior = false;
+    });
+    assert_eq!(scene.prior.map(|p| p.source), Some(PriorSource::Scene));
+    assert_eq!(generic.prior, Some(Prior::generic()));
+    assert_eq!(
+        s_scene.rendered, s_given.rendered,
+        "the same prior renders the same"
+    );
+    assert_eq!(scene.first_force_after_local_contact_ms, Some(0.0));
+    // The stages: the prior's error is the truth's (small) against the generic's, then models.
+    let (p, g) = (scene.stage_errors, generic.stage_errors);
+    let (e_scene, e_generic) = (p.prior_pct.unwrap(), g.prior_pct.unwrap());
+    assert!(
+        e_scene < 0.5 * e_generic,
+        "prior stage: {e_scene:.1} % against {e_generic:.1} %"
+    );
+    assert!(p.seconds[0] > 0.3 && p.whole_pct.is_some(), "{p:?}");
+    assert_eq!(p, given.stage_errors);
+    let table = metrics::table(&scene);
+    assert!(table.contains("the scene's prior"), "{table}");
+    assert!(
+        table.contains("error in contact: prior / reduced / whole model"),
+        "{table}"
+    );
 }
 
 fn first_contact_s(series: &Series) -> f64 {

@@ -56,13 +56,14 @@ pub struct RtArgs {
 /// (`operator run`, the demo and the soak).
 #[derive(Clone, Debug, Args)]
 pub struct PriorArgs {
-    /// What to render from the first tick of contact until the telerobot's first model: generic
-    /// (the centre of the soft-object class), none (free space), or K,B (the normal's stiffness
-    /// in N/m and damping in N·s/m; the tangents keep the generic object).
+    /// What to render from the first tick of contact until the telerobot's first model: scene
+    /// (the default: the scene's [prior] when the telerobot's scene declares one, else generic),
+    /// generic (the centre of the soft-object class), none (free space), or K,B (the normal's
+    /// stiffness in N/m and damping in N·s/m; the tangents keep the generic object).
     #[arg(
         long,
         value_name = "PRIOR",
-        default_value = "generic",
+        default_value = "scene",
         allow_hyphen_values = true
     )]
     pub prior: String,
@@ -71,10 +72,11 @@ pub struct PriorArgs {
 impl PriorArgs {
     /// The operator node's settings with this prior; `--prior` checked.
     pub fn node_config(&self) -> anyhow::Result<node::operator::OperatorConfig> {
-        let prior = mmt::model::prior::parse(&self.prior)
+        let choice = mmt::model::prior::parse(&self.prior)
             .map_err(|e| anyhow::anyhow!("--prior {}: {e}", self.prior))?;
         Ok(node::operator::OperatorConfig {
-            prior,
+            prior: choice.prior,
+            prefer_scene_prior: choice.prefer_scene,
             ..node::operator::OperatorConfig::default()
         })
     }

@@ -7,8 +7,8 @@ use protocol::Header;
 use protocol::operator_to_telerobot::{self as o2t, Command, Hello, Ping};
 use protocol::telerobot_to_operator::{
     self as t2o, AxisState, CloudFrame, Contact, ContactState, Measurement, ModelStructure,
-    ModelTerms, ParameterSet, Parameters, Pong, Refusal, Refused, SceneSummary, StateSync,
-    SurfaceFrame, Welcome,
+    ModelTerms, ParameterSet, Parameters, Pong, Refusal, Refused, ScenePrior, SceneSummary,
+    StateSync, SurfaceFrame, Welcome,
 };
 
 /// Lower-case hex of `bytes`, for golden literals.
@@ -72,6 +72,16 @@ pub fn telerobot_samples() -> Vec<t2o::Message> {
                 cloud_rate_hz: Some(30.0),
                 left_out: vec!["k1".into()],
                 proxy_radii_m: [0.5, 1.0, 2.0],
+                prior: Some(ScenePrior {
+                    normal_k_n_per_m: 2.0,
+                    normal_b_ns_per_m: 0.5,
+                    mass_kg: 1.0,
+                    k_ground_n_per_m: 0.0,
+                    b_ground_ns_per_m: 0.5,
+                    k_contact_n_per_m: 2.0,
+                    b_contact_ns_per_m: 0.5,
+                    coulomb_n: 0.25,
+                }),
             },
         }),
         t2o::Message::Refused(Refused {
@@ -334,6 +344,7 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
         proptest::option::of(finite()),
         proptest::collection::vec(".{0,10}", 0..4),
         [finite(), finite(), finite()],
+        proptest::option::of(proptest::array::uniform8(finite())),
     )
         .prop_map(
             |(
@@ -344,6 +355,7 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
                 cloud_rate_hz,
                 left_out,
                 proxy_radii_m,
+                prior,
             )| {
                 SceneSummary {
                     name,
@@ -353,6 +365,16 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
                     cloud_rate_hz,
                     left_out,
                     proxy_radii_m,
+                    prior: prior.map(|[a, b, c, d, e, f, g, h]| ScenePrior {
+                        normal_k_n_per_m: a,
+                        normal_b_ns_per_m: b,
+                        mass_kg: c,
+                        k_ground_n_per_m: d,
+                        b_ground_ns_per_m: e,
+                        k_contact_n_per_m: f,
+                        b_contact_ns_per_m: g,
+                        coulomb_n: h,
+                    }),
                 }
             },
         );

@@ -63,6 +63,7 @@ pub use validate::SceneError;
 
 use crate::SensorNoise;
 use mmt::contact::ProxyConfig;
+use mmt::model::prior::Guess;
 use mmt::model::{KelvinVoigt, Physical, Structure};
 use serde::{Deserialize, Serialize};
 
@@ -97,6 +98,11 @@ pub struct Scene {
     /// default around the surface point ([`Scene::motion_limits`]).
     #[serde(default)]
     pub limits: Option<LimitsSection>,
+    /// An informed guess of the object for the operator to render before its first model
+    /// (issue 13: e.g. from vision), weighed against the generic class
+    /// ([`mmt::model::prior::Guess::prior`]). Left out: the generic prior.
+    #[serde(default)]
+    pub prior: Option<Guess>,
     /// What the real-time budget did to the cloud at load ([`Scene::cloud_budget`]).
     #[serde(skip)]
     cloud_budget: Option<CloudBudgetFit>,

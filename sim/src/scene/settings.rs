@@ -3,8 +3,9 @@
 
 use mmt::estimator::EstimatorConfig;
 use mmt::model::Structure;
+use mmt::model::prior::Prior;
 use mmt::rls::ColumnScales;
-use node::{KnownSurface, MotionLimits, TelerobotSettings, structure_to_wire};
+use node::{KnownSurface, MotionLimits, TelerobotSettings, prior_to_wire, structure_to_wire};
 use protocol::telerobot_to_operator::SceneSummary;
 
 use super::{CloudKind, Scene};
@@ -76,7 +77,15 @@ impl Scene {
                 normal: self.surface.normal,
             }),
             limits: self.motion_limits(),
+            prior: self.object_prior(),
         }
+    }
+
+    /// The scene's `[prior]`, weighed against the generic class
+    /// ([`mmt::model::prior::Guess::prior`]); `None`
+    /// when it declares none (the operator then renders its own choice, by default generic).
+    pub fn object_prior(&self) -> Option<Prior> {
+        self.prior.and_then(|g| g.prior().ok())
     }
 
     /// The robot's motion limits: the scene's `[limits]`, each left out from
@@ -106,6 +115,7 @@ impl Scene {
             cloud_rate_hz: (self.cloud.source != CloudKind::None).then_some(self.cloud.rate_hz),
             left_out: self.left_out(),
             proxy_radii_m: [self.proxy.r1_m, self.proxy.r2_m, self.proxy.r3_m],
+            prior: self.object_prior().as_ref().map(prior_to_wire),
         }
     }
 }

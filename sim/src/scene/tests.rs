@@ -491,3 +491,46 @@ fn structure_selection_is_a_sliding_mass_option() {
         "{e}"
     );
 }
+
+/// Issue 13 item 5: a scene may declare a prior of its object (e.g. from vision); it reaches
+/// the operator in the `Welcome`, weighed against the generic class, and every bad field is
+/// refused naming it.
+#[test]
+fn a_scene_prior_reaches_the_operator_weighed_and_checked() {
+    use mmt::model::prior::{Prior, PriorSource};
+    assert_eq!(Scene::exp1().prior, None);
+    assert_eq!(Scene::exp1().summary().prior, None);
+    let guess = "[prior]\nk_contact_n_per_m = 450.0\nb_contact_ns_per_m = 50.0\n\
+                 mass_kg = 1.2\nspread = 0.0\n\n[surface]";
+    let scene = with("[surface]", guess).unwrap();
+    let prior = scene.object_prior().unwrap();
+    assert_eq!(prior.source, PriorSource::Scene);
+    assert_eq!(
+        (prior.normal.k_n_per_m, prior.normal.b_ns_per_m),
+        (450.0, 50.0)
+    );
+    assert_eq!(prior.tangential.mass_kg, 1.2);
+    let generic = Prior::generic().tangential;
+    assert_eq!(prior.tangential.coulomb_n, generic.coulomb_n);
+    let remote = node::OperatorSettings::from_welcome(&scene.summary()).unwrap();
+    assert_eq!(remote.prior, Some(prior));
+    assert_eq!(remote, scene.telerobot_settings().operator_view());
+    // A spread weighs the guess against the class: between the two.
+    let vague = with("[surface]", &guess.replace("spread = 0.0", "spread = 0.5")).unwrap();
+    let k = vague.object_prior().unwrap().normal.k_n_per_m;
+    assert!(k > 450.0 && k < Prior::generic().normal.k_n_per_m, "{k}");
+    for (bad, field) in [
+        ("k_contact_n_per_m = 450.0", "prior.k_contact_n_per_m"),
+        ("b_contact_ns_per_m = 50.0", "prior.b_contact_ns_per_m"),
+        ("mass_kg = 1.2", "prior.mass_kg"),
+        ("spread = 0.0", "prior.spread"),
+    ] {
+        let (key, _) = bad.split_once(" = ").unwrap();
+        let text = guess.replace(bad, &format!("{key} = -3.0"));
+        let e = with("[surface]", &text).unwrap_err().to_string();
+        assert!(e.contains(&format!("{field} = -3.0")), "{e}");
+        assert!(e.contains("expected"), "{e}");
+    }
+    let unknown = with("[surface]", &guess.replace("spread", "confidence")).unwrap_err();
+    assert!(unknown.to_string().contains("confidence"), "{unknown}");
+}

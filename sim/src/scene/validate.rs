@@ -158,7 +158,25 @@ impl Scene {
             self.validate_cloud()?;
         }
         self.validate_sensors()?;
+        self.validate_prior()?;
         self.validate_model()
+    }
+
+    /// `[prior]`: every term and the spread, named by its scene field.
+    fn validate_prior(&self) -> Result<(), SceneError> {
+        let Some(Err(e)) = self.prior.as_ref().map(|g| g.validate()) else {
+            return Ok(());
+        };
+        let name = match e.field {
+            "mass_kg" => "prior.mass_kg",
+            "k_ground_n_per_m" => "prior.k_ground_n_per_m",
+            "b_ground_ns_per_m" => "prior.b_ground_ns_per_m",
+            "k_contact_n_per_m" => "prior.k_contact_n_per_m",
+            "b_contact_ns_per_m" => "prior.b_contact_ns_per_m",
+            "coulomb_friction_n" => "prior.coulomb_friction_n",
+            _ => "prior.spread",
+        };
+        field(name, e.value, false, e.expected)
     }
 
     /// `[sensors]`: every noise term, named by its scene field.
