@@ -38,7 +38,8 @@ use crate::topics::RobotTopics;
 
 mod path;
 
-use path::{Follower, Point as PathPoint, TargetPath};
+use path::{Point as PathPoint, TargetPath};
+use sim::Follower;
 
 /// The arm's settings.
 #[derive(Clone, Debug)]
@@ -100,7 +101,7 @@ pub struct ArmReport {
     /// Publications the middleware refused.
     pub publish_errors: u64,
     /// Breaks in the commanded path the tool returned across, and the periods it spent
-    /// returning ([`path::Follower`]).
+    /// returning ([`sim::Follower`]).
     pub path_breaks: (u64, u64),
     /// Its loop's timing.
     pub timing: rt::TimingReport,

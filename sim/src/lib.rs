@@ -19,6 +19,7 @@
 
 pub mod bridge;
 pub mod camera;
+pub mod follower;
 pub mod friction;
 pub mod holes;
 pub mod noise;
@@ -30,6 +31,7 @@ pub mod workload;
 pub mod world;
 
 pub use bridge::SimBridge;
+pub use follower::Follower;
 pub use friction::{Karnopp, Phase};
 pub use noise::{Measurement, SensorNoise, Sensors};
 pub use object::{FrictionStats, SimConfig, SimError, SimSample, SlidingObjectSim};
