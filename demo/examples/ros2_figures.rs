@@ -206,8 +206,9 @@ fn main() {
         let Some(e) = stats else { continue };
         println!(
             "estimator ({name}): {} new-object resets; gaps: {} samples filled, {} restarted; {} \
-             samples contradicting the motion (learning settled)",
-            e.new_objects, e.filled_samples, e.gap_restarts, e.motion_settles
+             samples contradicting the motion (learning settled), {} gaps hiding a change of \
+             speed (detector muted)",
+            e.new_objects, e.filled_samples, e.gap_restarts, e.motion_settles, e.gap_mutes
         );
     }
     let g = &t.last.guard;

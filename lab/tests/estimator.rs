@@ -735,14 +735,90 @@ fn a_robot_stopped_while_its_states_were_lost_is_not_a_new_object() {
             );
             assert_exp1_within(&p, 3.0, seed);
         }
-        // The same gaps over a smooth motion: the fill holds, learning goes on.
+        // The same gaps over a smooth motion: the fill holds, learning goes on (a gap at the
+        // motion's peak acceleration may be waited out, its two velocities allowing a stop: 1–3
+        // of about 70 gaps here).
         let (resets, error, _, stats) = run(seed, Stall::Smooth);
-        assert_eq!(
-            (resets, stats.motion_settles),
-            (0, 0),
-            "seed {seed}: {stats:?}"
-        );
+        assert_eq!(resets, 0, "seed {seed}: {stats:?}");
+        assert!(stats.motion_settles <= 5, "seed {seed}: {stats:?}");
         assert!(stats.filled_samples > 400, "seed {seed}: {stats:?}");
         assert!(error < 0.01, "seed {seed}: {error}");
+    }
+}
+
+/// The ROS 2 test arm (`sim::Follower`) goes on along its last target's velocity for 10 ms when
+/// its targets stall, then stops at up to 10 m/s² and returns to the path when they come back;
+/// on a loaded machine the same held-up link loses its states over the stall. The speed changes
+/// inside such a gap while both ends' positions stay within what the two velocities allow, so
+/// the motion check passed it; the filters were stepped over it in a straight line and the
+/// force transient that followed reset the model: 3–8 times a minute here (seeds 1–3, a stall
+/// of 11–42 ms a second; `ros2_figures` 60 s runs: 1–2 resets in three of five). Now a gap over
+/// which the measured speed changed so much that a stop may hide in it is waited out, and one
+/// over which it changed more than the fill follows mutes the detector (`mmt::estimator::
+/// GAP_MUTE_M`). With every state seen, the same stops were never a problem.
+#[test]
+fn an_arm_that_stops_for_want_of_targets_while_its_states_are_lost_is_not_a_new_object() {
+    let run = |seed: u64, lose: bool, stall_ms: (u32, u32)| {
+        let (mut est, ex, mut sim) = exp1_with_an_arm(seed);
+        let mut stalls = Pcg64::seed_from_u64(seed + 100);
+        let mut arm = sim::Follower::default();
+        let (mut stall_left, mut stalled_for, mut gap_left) = (0u32, 0u32, 0u32);
+        let (mut held, mut resets) = ((0.0, 0.0), 0);
+        for k in 0..60_000 {
+            let t = k as f64 * 1e-3;
+            let c = t >= 0.5;
+            if t > 5.0 && stall_left == 0 && rand::Rng::random::<f64>(&mut stalls) < 1e-3 {
+                stall_left = rand::Rng::random_range(&mut stalls, stall_ms.0..stall_ms.1);
+                stalled_for = 0;
+                held = ex.eval(t);
+                gap_left = stall_left + 2;
+            }
+            // The arm's reference: the path, or along the last target for 10 ms, then held.
+            let (x_r, v_r) = if stall_left > 0 {
+                stall_left -= 1;
+                stalled_for += 1;
+                let h = f64::from(stalled_for.min(10)) * 1e-3;
+                (
+                    held.0 + held.1 * h,
+                    if stalled_for < 10 { held.1 } else { 0.0 },
+                )
+            } else {
+                let (x, v) = ex.eval(t);
+                (x, if c { v } else { 0.0 })
+            };
+            let (x, v) = arm.step([x_r, 0.0, 0.0], [v_r, 0.0, 0.0], 1e-3);
+            let m = sim.step(x[0], v[0], c).measured;
+            let lost = lose && gap_left > 0;
+            gap_left = gap_left.saturating_sub(1);
+            if !lost {
+                resets += usize::from(step_measured(&mut est, t, &m, c).new_object);
+            }
+        }
+        let p = est.latest().and_then(|g| g.sliding_mass()).unwrap();
+        assert!(arm.breaks().0 > 30, "seed {seed}: {:?}", arm.breaks());
+        (resets, p, est.stats())
+    };
+    for seed in [1, 2, 3] {
+        for stall in [(11, 20), (20, 42)] {
+            let (resets, p, stats) = run(seed, false, stall);
+            assert_eq!(
+                (resets, stats.motion_settles),
+                (0, 0),
+                "seed {seed}: {stats:?}"
+            );
+            assert_exp1_within(&p, 1.0, seed);
+            let (resets, p, stats) = run(seed, true, stall);
+            assert_eq!(resets, 0, "seed {seed} {stall:?}: {stats:?}");
+            assert!(stats.motion_settles > 10, "seed {seed}: {stats:?}");
+            // The mass is the least excited: −8 % at worst here (−37 % learnt through).
+            let truth = Physical::THESIS_EXP1;
+            let m = (p.mass_kg / truth.mass_kg - 1.0).abs();
+            assert!(m <= 0.1, "seed {seed} {stall:?}: {p:?}");
+            let p = Physical {
+                mass_kg: truth.mass_kg,
+                ..p
+            };
+            assert_exp1_within(&p, 3.0, seed);
+        }
     }
 }

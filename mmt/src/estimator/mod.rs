@@ -35,7 +35,7 @@ mod stats;
 use confidence::Confidence;
 pub use confidence::ConfidenceConfig;
 pub use friction::{FrictionObserver, ObservedObject};
-pub use gaps::{MAX_FILLED_PERIODS, MOTION_TOLERANCE_M, SETTLE_CUTOFF_PERIODS};
+pub use gaps::{GAP_MUTE_M, MAX_FILLED_PERIODS, MOTION_TOLERANCE_M, SETTLE_CUTOFF_PERIODS};
 pub use stats::{EstimatorStats, RejectionCounts};
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
@@ -405,11 +405,7 @@ impl Estimator {
         }
         let missed = self.missed_periods(now_s);
         self.track_phase(now_s, in_contact, &mut update);
-        if missed > MAX_FILLED_PERIODS {
-            self.restart_after_gap(now_s);
-        } else if self.phase == Phase::Learning && self.contradicts_motion(now_s, &samples[..n]) {
-            self.settle(now_s);
-        }
+        self.check_gap(now_s, &samples[..n], missed);
         let dt = self.config.filter.svf.sample_period_s;
         let mut inputs = [(0.0, 0.0); MAX_AXES];
         for (i, s) in samples[..n].iter().enumerate() {

@@ -51,6 +51,10 @@ pub struct EstimatorStats {
     /// jumped): learning waited for the filters to settle and the new-object detector was muted.
     #[serde(default)]
     pub motion_settles: u64,
+    /// Gaps, while learning, over which the measured speed changed more than the straight fill
+    /// follows ([`super::GAP_MUTE_M`]): the new-object detector was muted, learning went on.
+    #[serde(default)]
+    pub gap_mutes: u64,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).
