@@ -6,8 +6,10 @@
 //! compressed time by a period at each lost sample, and the new-object detector reset the
 //! covariance five times in 60 s at 1 % loss (`lab` test
 //! `estimator::samples_lost_in_transport_are_not_a_new_object`). Samples whose positions
-//! contradict their velocities ([`MOTION_TOLERANCE_M`]: a stop hidden in a gap, or a jump) are
-//! not learnt from until the filters have settled ([`SETTLE_CUTOFF_PERIODS`]).
+//! contradict their velocities ([`MOTION_TOLERANCE_M`]: a stop hidden in a gap, or a jump), or
+//! that end a gap over which the speed changed enough for a stop to hide in it, are not learnt
+//! from until the filters have settled ([`SETTLE_CUTOFF_PERIODS`]); a gap over which the speed
+//! changed more than the straight fill follows mutes the new-object detector ([`GAP_MUTE_M`]).
 
 use super::{AxisSample, Estimator, MAX_AXES, Phase};
 use crate::filter::RegressorFilter;
@@ -27,7 +29,10 @@ pub const MAX_FILLED_PERIODS: u32 = 50;
 /// line or across a jump, then carry a motion that never happened. 0.1 mm: a stop of 2 ms at 5
 /// cm/s; an arm's position and velocity noise is micrometres, and gaps of 4–13 ms over the exp-1
 /// motion never came near it (`lab` test below): a smooth motion whose velocity peaks inside a
-/// gap leaves the bounds by about jerk·Δt³/12.
+/// gap leaves the bounds by about jerk·Δt³/12. The same tolerance bounds how far a velocity
+/// moving between the two measured ones may take the motion off the straight fill over a gap
+/// (`|Δv|·Δt/4`): 1–3 of about 70 such gaps of 6–13 ms at the exp-1 motion's peak acceleration
+/// pass it.
 pub const MOTION_TOLERANCE_M: f64 = 1e-4;
 
 /// After samples that contradict a motion, learning waits this many periods of the filter's
@@ -59,9 +64,9 @@ impl Estimator {
         if missed > MAX_FILLED_PERIODS {
             self.restart_after_gap(now_s);
         } else if self.phase == Phase::Learning {
-            if self.contradicts_motion(now_s, samples) {
+            if self.contradicts_motion(now_s, samples, missed) {
                 self.settle(now_s);
-            } else if self.gap_hides_acceleration(now_s, samples) {
+            } else if missed > 0 && self.gap_hides_acceleration(now_s, samples) {
                 self.stats.gap_mutes += 1;
                 self.mute_new_object_detector();
             }
@@ -87,11 +92,12 @@ impl Estimator {
     /// moving monotonically from one to the other, the displacement lies between the lower and
     /// the higher velocity times the interval (a sudden stop or a collision inside it). Outside,
     /// the robot did something between them, over a gap or in a jump, that the filters do not
-    /// know. Also when the two velocities are so far apart that a velocity moving between them
-    /// may leave the straight fill by more than the tolerance (`|Δv|·Δt/4`, a step at mid-gap):
-    /// within the bounds, a stop may still hide there (the arm above, stopping for 1–30 ms of a
+    /// know. Also, over a gap (`missed` periods without a sample), when the two velocities are
+    /// so far apart that a velocity moving between them may leave the straight fill by more than
+    /// the tolerance (`|Δv|·Δt/4`, a step at mid-gap): within the bounds, a stop may still hide
+    /// there (the arm above, stopping for 1–30 ms of a
     /// 12–42 ms gap, biased the mass by up to −37 % when learnt through).
-    fn contradicts_motion(&self, now_s: f64, samples: &[AxisSample]) -> bool {
+    fn contradicts_motion(&self, now_s: f64, samples: &[AxisSample], missed: u32) -> bool {
         let Some((last_s, last)) = self.last_sample else {
             return false;
         };
@@ -104,7 +110,7 @@ impl Estimator {
                 let moved = s.position_m - x0;
                 let within =
                     moved >= lo * dt - MOTION_TOLERANCE_M && moved <= hi * dt + MOTION_TOLERANCE_M;
-                let unfillable = (hi - lo) * dt / 4.0 > MOTION_TOLERANCE_M;
+                let unfillable = missed > 0 && (hi - lo) * dt / 4.0 > MOTION_TOLERANCE_M;
                 !within || unfillable
             })
     }

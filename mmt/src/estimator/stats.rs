@@ -48,7 +48,8 @@ pub struct EstimatorStats {
     pub gap_restarts: u64,
     /// Samples, while learning, whose position contradicts the last sample's and the two
     /// velocities ([`super::MOTION_TOLERANCE_M`]: the robot stopped unseen over a gap, or
-    /// jumped): learning waited for the filters to settle and the new-object detector was muted.
+    /// jumped), or that end a gap whose two velocities leave room for such a stop: learning
+    /// waited for the filters to settle and the new-object detector was muted.
     #[serde(default)]
     pub motion_settles: u64,
     /// Gaps, while learning, over which the measured speed changed more than the straight fill
