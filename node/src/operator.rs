@@ -21,16 +21,18 @@
 //!   (the model's renderers run beside the prior's from the episode's onset, replayed at model
 //!   start, so their mass state is the model's own).
 
+mod prior;
 mod stats;
+pub use prior::{GatedPrior, gate_prior};
 pub use stats::OperatorStats;
+
+use prior::prior_targets;
 
 use std::sync::Arc;
 
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
-use mmt::model::backsolve::Params;
-use mmt::model::gates::gate_physical;
+use mmt::model::Structure;
 use mmt::model::prior::Prior;
-use mmt::model::{KelvinVoigt, Structure};
 use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
 use mmt::vec3;
 use protocol::Header;
@@ -44,8 +46,10 @@ use crate::telerobot::NodeError;
 use crate::tracker::{ContactTracker, Tracked};
 use crate::wire::{gated_from_wire, is_massless, surface_frame_from_wire};
 
-/// How the operator decides contact and keeps in step.
+/// How the operator decides contact and keeps in step. A field left out of serialised settings
+/// takes [`OperatorConfig::default`]'s value.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct OperatorConfig {
     /// Detect contact locally on the received cloud (else use the telerobot's contact state).
     pub local_contact: bool,
@@ -58,11 +62,9 @@ pub struct OperatorConfig {
     pub replay_on_model_start: bool,
     /// What the normal and tangential axes render before the first model (`None`: nothing,
     /// free space). Default: [`Prior::generic`].
-    #[serde(default)]
     pub prior: Option<Prior>,
     /// Render the scene's prior instead of [`OperatorConfig::prior`] when the scene declares
     /// one (`OperatorSettings::prior`, from the `Welcome`). Default: true (`--prior scene`).
-    #[serde(default)]
     pub prefer_scene_prior: bool,
 }
 
@@ -164,16 +166,20 @@ impl OperatorNode {
     ) -> Result<Self, NodeError> {
         let r = settings.renderer;
         let prior = config.prior_for(&settings);
+        let gated = match &prior {
+            Some(p) => {
+                p.validate()?;
+                gate_prior(p, settings.normal, settings.tangential)
+                    .map_err(NodeError::PriorRejected)?
+            }
+            None => GatedPrior::default(),
+        };
         let normal = match settings.normal {
             Structure::Free => None,
             _ => {
                 let mut renderer = KelvinVoigtRenderer::new(r)?;
-                if let Some(prior) = prior {
-                    prior.validate()?;
-                    let normal = Params::KelvinVoigt(prior.normal);
-                    let gated = gate_physical(Structure::KelvinVoigt, &normal)
-                        .map_err(NodeError::PriorRejected)?;
-                    renderer.set_prior(&gated);
+                if let Some(g) = &gated.normal {
+                    renderer.set_prior(g);
                 }
                 Some(renderer)
             }
@@ -186,12 +192,12 @@ impl OperatorNode {
             })
         };
         let mut prior_axes = [tangent()?, tangent()?];
-        let prior_tangential = match prior {
-            Some(prior) if settings.tangential != Structure::Free => {
-                prior_targets(&mut prior_axes, settings.tangential, &prior)?;
+        let prior_tangential = match &gated.tangential {
+            Some(g) => {
+                prior_targets(&mut prior_axes, g);
                 PriorStage::Prior
             }
-            _ => PriorStage::Done,
+            None => PriorStage::Done,
         };
         Ok(OperatorNode {
             proxy: Proxy::new(settings.proxy, device_m)
@@ -573,32 +579,6 @@ impl OperatorNode {
     pub fn settings(&self) -> &OperatorSettings {
         &self.settings
     }
-}
-
-/// Gives each tangential prior renderer its model: the prior's object as the structure allows
-/// (a sliding mass), or its contact element (Kelvin–Voigt).
-fn prior_targets(
-    axes: &mut [Tangential; 2],
-    structure: Structure,
-    prior: &Prior,
-) -> Result<(), NodeError> {
-    let t = prior.tangential;
-    let params = match structure {
-        Structure::KelvinVoigt => Params::KelvinVoigt(KelvinVoigt {
-            k_n_per_m: t.k_contact_n_per_m,
-            b_ns_per_m: t.b_contact_ns_per_m,
-        }),
-        _ => Params::SlidingMass(t),
-    };
-    let gated = gate_physical(structure, &params).map_err(NodeError::PriorRejected)?;
-    for axis in axes {
-        match axis {
-            Tangential::Sliding(r) => r.set_target(&gated),
-            Tangential::Shear(r) => r.set_target(&gated),
-            Tangential::Free => false,
-        };
-    }
-    Ok(())
 }
 
 pub(super) fn step_tangential(t: &mut Tangential, x: f64, v: f64, in_contact: bool) -> f64 {

@@ -17,6 +17,7 @@ use protocol::telerobot_to_operator::SceneSummary;
 use serde::{Deserialize, Serialize};
 
 use crate::guard::MotionLimits;
+use crate::operator::gate_prior;
 use crate::wire::{prior_from_wire, structure_from_wire};
 
 /// The control rates the loops run at \[Hz\].
@@ -101,7 +102,8 @@ pub struct OperatorSettings {
     /// Renderer settings (the operator's device damping enters here).
     pub renderer: RendererConfig,
     /// The scene's prior of its object, when it declares one: what the operator renders before
-    /// the first model unless its user chose another (`operator::PriorChoice`).
+    /// the first model unless its user chose another
+    /// ([`crate::operator::OperatorConfig::prefer_scene_prior`]).
     #[serde(default)]
     pub prior: Option<Prior>,
 }
@@ -118,6 +120,10 @@ pub enum SettingsError {
     /// The scene's prior is not a passive model.
     #[error("the telerobot's scene {0}")]
     Prior(#[from] mmt::model::prior::PriorError),
+    /// The scene's prior is passive but the renderers' gates refuse it for the scene's
+    /// structures.
+    #[error("the telerobot's scene prior cannot be rendered: {0}")]
+    PriorRejected(mmt::model::gates::GateRejection),
 }
 
 impl OperatorSettings {
@@ -137,16 +143,22 @@ impl OperatorSettings {
             ..ProxyConfig::default()
         };
         proxy.validate()?;
+        let normal = structure_from_wire(summary.normal);
+        let tangential = structure_from_wire(summary.tangential);
+        let prior = summary.prior.as_ref().map(prior_from_wire).transpose()?;
+        if let Some(p) = &prior {
+            gate_prior(p, normal, tangential).map_err(SettingsError::PriorRejected)?;
+        }
         Ok(OperatorSettings {
             period_ns: (1e9 / rate).round() as i64,
             proxy,
-            normal: structure_from_wire(summary.normal),
-            tangential: structure_from_wire(summary.tangential),
+            normal,
+            tangential,
             renderer: RendererConfig {
                 rate_hz: rate,
                 ..RendererConfig::default()
             },
-            prior: summary.prior.as_ref().map(prior_from_wire).transpose()?,
+            prior,
         })
     }
 }

@@ -64,7 +64,7 @@ impl SoftObjectRanges {
 pub enum PriorSource {
     /// The generic default ([`Prior::generic`]).
     Generic,
-    /// Given by the user or the scene (an informed guess, e.g. from vision).
+    /// Given by the user (`--prior K,B`).
     Given,
     /// The simulated scene's true contact parameters: the floor a perfect prior sets (never a
     /// reported figure's default).
@@ -198,8 +198,9 @@ pub struct Guess {
     pub b_contact_ns_per_m: Option<f64>,
     /// Coulomb friction level `Fc` \[N\].
     pub coulomb_friction_n: Option<f64>,
-    /// How sure the guess is: its one-sigma spread relative to each term (0.3: within ±30 %;
-    /// 0: exactly these), 0 to [`MAX_SPREAD`].
+    /// How sure the guess is, required: its one-sigma spread relative to each term, as a factor
+    /// `1 + spread` either way for the terms weighed in logarithms (0.3: ×1.3 or ÷1.3) and
+    /// `±spread` for the friction level; 0: exactly these. 0 to [`MAX_SPREAD`].
     pub spread: f64,
 }
 

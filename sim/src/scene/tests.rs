@@ -533,4 +533,18 @@ fn a_scene_prior_reaches_the_operator_weighed_and_checked() {
     }
     let unknown = with("[surface]", &guess.replace("spread", "confidence")).unwrap_err();
     assert!(unknown.to_string().contains("confidence"), "{unknown}");
+    // Passive term by term, but a sliding object with no damping at all: the renderers' gates
+    // refuse it, so the scene does at load (the operator would refuse the Welcome).
+    let undamped = "[prior]\nb_contact_ns_per_m = 0.0\nb_ground_ns_per_m = 0.0\nspread = 0.0\n\n\
+                    [surface]";
+    let e = with("[surface]", undamped).unwrap_err().to_string();
+    assert!(
+        e.contains("prior = ") && e.contains("damping above 0"),
+        "{e}"
+    );
+    let mut summary = scene.summary();
+    let wire = summary.prior.as_mut().unwrap();
+    (wire.b_contact_ns_per_m, wire.b_ground_ns_per_m) = (0.0, 0.0);
+    let e = node::OperatorSettings::from_welcome(&summary).unwrap_err();
+    assert!(e.to_string().contains("prior cannot be rendered"), "{e}");
 }

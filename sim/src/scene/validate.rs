@@ -162,10 +162,30 @@ impl Scene {
         self.validate_model()
     }
 
-    /// `[prior]`: every term and the spread, named by its scene field.
+    /// `[prior]`: every term and the spread, named by its scene field; then the prior it
+    /// gives, through the renderers' gates for the scene's structures (what the operator does
+    /// with it at the `Welcome`).
     fn validate_prior(&self) -> Result<(), SceneError> {
-        let Some(Err(e)) = self.prior.as_ref().map(|g| g.validate()) else {
+        let Some(guess) = &self.prior else {
             return Ok(());
+        };
+        let e = match guess.prior() {
+            Ok(prior) => {
+                let (normal, tangential) = (
+                    self.model.normal_structure(),
+                    self.model.tangential_structure(),
+                );
+                return node::operator::gate_prior(&prior, normal, tangential)
+                    .map(|_| ())
+                    .map_err(|e| SceneError::Field {
+                        origin: String::new(),
+                        field: "prior",
+                        value: e.to_string(),
+                        expected: "a prior the renderers accept for the scene's [model] \
+                                   structures (a sliding object needs damping above 0)",
+                    });
+            }
+            Err(e) => e,
         };
         let name = match e.field {
             "mass_kg" => "prior.mass_kg",
@@ -174,7 +194,8 @@ impl Scene {
             "k_contact_n_per_m" => "prior.k_contact_n_per_m",
             "b_contact_ns_per_m" => "prior.b_contact_ns_per_m",
             "coulomb_friction_n" => "prior.coulomb_friction_n",
-            _ => "prior.spread",
+            "spread" => "prior.spread",
+            _ => "prior",
         };
         field(name, e.value, false, e.expected)
     }
