@@ -104,6 +104,37 @@ fn error_rows(out: &mut String, r: &ExperimentReport) {
     );
 }
 
+/// What was rendered before the first model, and the error of each stage.
+fn prior_rows(out: &mut String, r: &ExperimentReport) {
+    let prior = match r.prior {
+        Some(p) => format!(
+            "normal {:.0} N/m, {:.1} N·s/m ({})",
+            p.normal.k_n_per_m,
+            p.normal.b_ns_per_m,
+            p.source.label()
+        ),
+        None => "none: free space until the first model".to_owned(),
+    };
+    row(out, "prior rendered before the first model", prior, "");
+    let g = &r.stage_errors;
+    let stage = |pct: Option<f64>, s: f64| match pct {
+        Some(p) => format!("{p:.1} % ({s:.2} s)"),
+        None => "—".to_owned(),
+    };
+    let stages = format!(
+        "{} / {} / {}",
+        stage(g.prior_pct, g.seconds[0]),
+        stage(g.reduced_pct, g.seconds[1]),
+        stage(g.whole_pct, g.seconds[2])
+    );
+    row(
+        out,
+        "error in contact: prior / reduced / whole model",
+        stages,
+        "",
+    );
+}
+
 /// How soon things happen: stable parameters, rendering, the estimator's fit, and the contact
 /// switch latencies.
 fn timing_rows(out: &mut String, r: &ExperimentReport) {
@@ -137,33 +168,7 @@ fn timing_rows(out: &mut String, r: &ExperimentReport) {
         pct(r.recontact_error_pct),
         "",
     );
-    let prior = match r.prior {
-        Some(p) => format!(
-            "normal {:.0} N/m, {:.1} N·s/m ({})",
-            p.normal.k_n_per_m,
-            p.normal.b_ns_per_m,
-            p.source.label()
-        ),
-        None => "none: free space until the first model".to_owned(),
-    };
-    row(out, "prior rendered before the first model", prior, "");
-    let g = &r.stage_errors;
-    let stage = |pct: Option<f64>, s: f64| match pct {
-        Some(p) => format!("{p:.1} % ({s:.2} s)"),
-        None => "—".to_owned(),
-    };
-    let stages = format!(
-        "{} / {} / {}",
-        stage(g.prior_pct, g.seconds[0]),
-        stage(g.reduced_pct, g.seconds[1]),
-        stage(g.whole_pct, g.seconds[2])
-    );
-    row(
-        out,
-        "error in contact: prior / reduced / whole model",
-        stages,
-        "",
-    );
+    prior_rows(out, r);
     row(
         out,
         "estimator reconstruction error",
