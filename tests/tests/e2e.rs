@@ -722,3 +722,35 @@ fn loss_and_jitter_do_not_stall_the_datagram_streams() {
     let error = r.experiment.rms_error_pct_after_stable.unwrap_or(f64::NAN);
     assert!(error < 15.0, "RMS error after stable {error} %");
 }
+
+/// Issue 13 item 5, end to end: the telerobot's scene declares a prior of its object; its
+/// `Welcome` carries it to the operator app, which renders it (the default `--prior scene`)
+/// and reports it, with the error of each stage.
+#[test]
+fn the_scene_prior_reaches_the_operator_app() {
+    let _serial = serial();
+    let guess = mmt::model::prior::Guess {
+        k_contact_n_per_m: Some(420.0),
+        b_contact_ns_per_m: Some(45.0),
+        spread: 0.0,
+        ..mmt::model::prior::Guess::default()
+    };
+    let (tr, shim, config) = through_shim_with(&Certs::new(), 0.0, 4.0, |c| {
+        c.scene.prior = Some(guess);
+    });
+    let outcome = spawn_operator(config).join().unwrap().unwrap();
+    tr.stop();
+    shim.shutdown().unwrap();
+    let r = &outcome.report.experiment;
+    let prior = r.prior.expect("a prior was rendered");
+    assert_eq!(prior.source, mmt::model::prior::PriorSource::Scene);
+    assert_eq!(
+        (prior.normal.k_n_per_m, prior.normal.b_ns_per_m),
+        (420.0, 45.0)
+    );
+    let stages = r.stage_errors;
+    assert!(
+        stages.seconds[0] > 0.0 && stages.prior_pct.is_some(),
+        "{stages:?}"
+    );
+}
