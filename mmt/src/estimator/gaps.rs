@@ -56,6 +56,27 @@ pub const SETTLE_CUTOFF_PERIODS: f64 = 3.0;
 /// Learning goes on: only the detector is muted.
 pub const GAP_MUTE_M: f64 = 1e-5;
 
+/// The last sample, for covering the next gap and checking the motion across it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LastSample {
+    /// Its time \[s\].
+    pub(super) t_s: f64,
+    /// Each axis's tared input `(x, F)`.
+    pub(super) inputs: [(f64, f64); MAX_AXES],
+    /// Each axis's measured velocity \[m/s\].
+    pub(super) velocities: [f64; MAX_AXES],
+}
+
+/// How a sample's motion since the last stands against the fill ([`Estimator::across`]).
+enum Across {
+    /// The fill holds.
+    Fits,
+    /// The fill misses a change of speed: the new-object detector is muted.
+    Mute,
+    /// A stop or a jump may be hidden: learning waits the filters out.
+    Settle,
+}
+
 impl Estimator {
     /// What the gap before the sample at `now_s` (`missed` periods) asks: too long to fill, the
     /// filters restart; while learning, a motion the samples contradict is waited out
@@ -63,23 +84,28 @@ impl Estimator {
     pub(super) fn check_gap(&mut self, now_s: f64, samples: &[AxisSample], missed: u32) {
         if missed > MAX_FILLED_PERIODS {
             self.restart_after_gap(now_s);
-        } else if self.phase == Phase::Learning {
-            if self.contradicts_motion(now_s, samples, missed) {
-                self.settle(now_s);
-            } else if missed > 0 && self.gap_hides_acceleration(now_s, samples) {
+            return;
+        }
+        if self.phase != Phase::Learning {
+            return;
+        }
+        match self.across(now_s, samples, missed) {
+            Across::Fits => {}
+            Across::Mute => {
                 self.stats.gap_mutes += 1;
                 self.mute_new_object_detector();
             }
+            Across::Settle => self.settle(now_s),
         }
     }
 
     /// Whole sample periods between the last sample and `now_s` with no sample (0 for the
     /// first sample, for one a period after the last, and for a repeated or earlier time).
     pub(super) fn missed_periods(&self, now_s: f64) -> u32 {
-        let Some((last_s, _)) = self.last_sample else {
+        let Some(last) = &self.last_sample else {
             return 0;
         };
-        let periods = ((now_s - last_s) / self.config.filter.svf.sample_period_s).round();
+        let periods = ((now_s - last.t_s) / self.config.filter.svf.sample_period_s).round();
         if periods.is_finite() && periods > 1.0 {
             periods.min(f64::from(u32::MAX)) as u32 - 1
         } else {
@@ -87,46 +113,39 @@ impl Estimator {
         }
     }
 
-    /// Whether the sample at `now_s` is further than [`MOTION_TOLERANCE_M`] on any axis from
-    /// where the last sample's position and the two velocities can put it: with the velocity
-    /// moving monotonically from one to the other, the displacement lies between the lower and
-    /// the higher velocity times the interval (a sudden stop or a collision inside it). Outside,
-    /// the robot did something between them, over a gap or in a jump, that the filters do not
-    /// know. Also, over a gap (`missed` periods without a sample), when the two velocities are
-    /// so far apart that a velocity moving between them may leave the straight fill by more than
-    /// the tolerance (`|Δv|·Δt/4`, a step at mid-gap): within the bounds, a stop may still hide
-    /// there (the arm above, stopping for 1–30 ms of a
-    /// 12–42 ms gap, biased the mass by up to −37 % when learnt through).
-    fn contradicts_motion(&self, now_s: f64, samples: &[AxisSample], missed: u32) -> bool {
-        let Some((last_s, last)) = self.last_sample else {
-            return false;
+    /// How the motion from the last sample to this one (at `now_s`, `missed` periods between)
+    /// stands against the fill, on the worst axis:
+    /// - [`Across::Settle`] when the sample is further than [`MOTION_TOLERANCE_M`] from where the
+    ///   last position and the two velocities can put it (with the velocity moving monotonically
+    ///   from one to the other, the displacement lies between the lower and the higher velocity
+    ///   times the interval: outside, the robot stopped or jumped in between), or, over a gap,
+    ///   when the two velocities are so far apart that a velocity moving between them may leave
+    ///   the straight fill by more than that tolerance (`|Δv|·Δt/4`, a step at mid-gap: a stop may
+    ///   hide there; the test arm, stopping for 1–30 ms of a 12–42 ms gap, biased the mass by up
+    ///   to −37 % when learnt through);
+    /// - [`Across::Mute`] when, over a gap, a constant acceleration between the two velocities
+    ///   leaves the fill by more than [`GAP_MUTE_M`] (`|Δv|·Δt/8`);
+    /// - [`Across::Fits`] otherwise.
+    fn across(&self, now_s: f64, samples: &[AxisSample], missed: u32) -> Across {
+        let Some(last) = &self.last_sample else {
+            return Across::Fits;
         };
-        let dt = now_s - last_s;
-        samples
-            .iter()
-            .zip(last.iter().zip(&self.last_velocity))
-            .any(|(s, ((x0, _), v0))| {
-                let (lo, hi) = (v0.min(s.velocity_m_per_s), v0.max(s.velocity_m_per_s));
-                let moved = s.position_m - x0;
-                let within =
-                    moved >= lo * dt - MOTION_TOLERANCE_M && moved <= hi * dt + MOTION_TOLERANCE_M;
-                let unfillable = missed > 0 && (hi - lo) * dt / 4.0 > MOTION_TOLERANCE_M;
-                !within || unfillable
-            })
-    }
-
-    /// Whether the motion over a gap before the sample at `now_s` changed speed by more than the
-    /// straight fill follows: a constant acceleration from one measured velocity to the other
-    /// leaves the chord by `|Δv|·Δt/8`, here over [`GAP_MUTE_M`].
-    fn gap_hides_acceleration(&self, now_s: f64, samples: &[AxisSample]) -> bool {
-        let Some((last_s, _)) = self.last_sample else {
-            return false;
-        };
-        let dt = now_s - last_s;
-        samples
-            .iter()
-            .zip(&self.last_velocity)
-            .any(|(s, v0)| (s.velocity_m_per_s - v0).abs() * dt / 8.0 > GAP_MUTE_M)
+        let dt = now_s - last.t_s;
+        let mut verdict = Across::Fits;
+        for ((s, (x0, _)), v0) in samples.iter().zip(&last.inputs).zip(&last.velocities) {
+            let (lo, hi) = (v0.min(s.velocity_m_per_s), v0.max(s.velocity_m_per_s));
+            let moved = s.position_m - x0;
+            let within =
+                moved >= lo * dt - MOTION_TOLERANCE_M && moved <= hi * dt + MOTION_TOLERANCE_M;
+            let change = if missed > 0 { (hi - lo) * dt } else { 0.0 };
+            if !within || change / 4.0 > MOTION_TOLERANCE_M {
+                return Across::Settle;
+            }
+            if change / 8.0 > GAP_MUTE_M {
+                verdict = Across::Mute;
+            }
+        }
+        verdict
     }
 
     /// Keeps the sample at `now_s` (its tared inputs `(x, F)` and velocities) for the next gap
@@ -137,10 +156,15 @@ impl Estimator {
         inputs: [(f64, f64); MAX_AXES],
         samples: &[AxisSample],
     ) {
-        self.last_sample = Some((now_s, inputs));
-        for (v, s) in self.last_velocity.iter_mut().zip(samples) {
+        let mut velocities = [0.0; MAX_AXES];
+        for (v, s) in velocities.iter_mut().zip(samples) {
             *v = s.velocity_m_per_s;
         }
+        self.last_sample = Some(LastSample {
+            t_s: now_s,
+            inputs,
+            velocities,
+        });
     }
 
     /// The samples contradict a motion: the filters' regressors carry the difference for a few
@@ -179,10 +203,10 @@ impl Estimator {
             .observed
             .and_then(|o| self.observers[i].step(&o, f, elapsed))
             .unwrap_or_else(|| filter.smooth_sign(s.velocity_m_per_s));
-        if let Some((_, last)) = self.last_sample.filter(|_| !restart) {
+        if let Some(last) = self.last_sample.filter(|_| !restart) {
             fill(
                 &mut self.filters[i],
-                last[i],
+                last.inputs[i],
                 (s.position_m, f),
                 shape,
                 missed,

@@ -264,10 +264,8 @@ pub struct Estimator {
     confirmed_this_model: bool,
     observer_started: bool,
     learned_s: f64,
-    /// Time [s] and tared input `(x, F)` of each axis of the last sample, for covering a gap.
-    last_sample: Option<(f64, [(f64, f64); MAX_AXES])>,
-    /// Measured velocity [m/s] of each axis at the last sample.
-    last_velocity: [f64; MAX_AXES],
+    /// The last sample, for covering a gap and checking the motion across it.
+    last_sample: Option<gaps::LastSample>,
     /// Until when [s] learning waits after samples that contradict a motion
     /// ([`SETTLE_CUTOFF_PERIODS`]).
     settle_until_s: f64,
@@ -327,7 +325,6 @@ impl Estimator {
             observer_started: false,
             learned_s: 0.0,
             last_sample: None,
-            last_velocity: [0.0; MAX_AXES],
             settle_until_s: f64::NEG_INFINITY,
             model_id: 0,
             structure: config.structure,
