@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
 use mmt::model::Structure;
-use mmt::model::prior::Prior;
+use mmt::model::prior::{Choice, Prior};
 use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
 use mmt::vec3;
 use protocol::Header;
@@ -69,6 +69,15 @@ pub struct OperatorConfig {
 }
 
 impl OperatorConfig {
+    /// This configuration with a `--prior` choice ([`mmt::model::prior::parse`]).
+    pub fn with_prior(self, choice: Choice) -> OperatorConfig {
+        OperatorConfig {
+            prior: choice.prior,
+            prefer_scene_prior: choice.prefer_scene,
+            ..self
+        }
+    }
+
     /// The prior this configuration renders with `settings`: the scene's when it declares one
     /// and [`OperatorConfig::prefer_scene_prior`] is set, else [`OperatorConfig::prior`].
     pub fn prior_for(&self, settings: &OperatorSettings) -> Option<Prior> {

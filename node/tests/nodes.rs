@@ -402,12 +402,7 @@ fn the_operator_renders_the_scenes_prior_unless_told_otherwise() {
     });
     let settings = OperatorSettings::from_welcome(&scene.summary()).unwrap();
     let rendered = |settings: OperatorSettings, value: &str| {
-        let choice = prior::parse(value).unwrap();
-        let config = OperatorConfig {
-            prior: choice.prior,
-            prefer_scene_prior: choice.prefer_scene,
-            ..OperatorConfig::default()
-        };
+        let config = OperatorConfig::default().with_prior(prior::parse(value).unwrap());
         OperatorNode::new(settings, config, [0.0; 3])
             .unwrap()
             .prior()

@@ -159,9 +159,10 @@ impl TestArm {
             wrench: graph::advertise(&mut node, &t.robot_wrench, config.qos)?,
         };
         let bridge = SimBridge::new(&config.scene, config.start_m, config.seed)?;
+        let period_ns = (1e9 / config.rate_hz).round() as i64;
         let periodic = Periodic::new(
             PeriodicConfig {
-                period_ns: (1e9 / config.rate_hz).round() as i64,
+                period_ns,
                 spin_ns: config.spin_ns,
                 ..PeriodicConfig::default()
             },
@@ -197,7 +198,7 @@ impl TestArm {
             frame_id: config.frame_id.clone(),
             path: TargetPath::new(),
             follower: Follower::default(),
-            period_ns: (1e9 / config.rate_hz).round() as i64,
+            period_ns,
             target_twist: None,
             last_index: None,
             wall_offset_ns: graph::wall_minus_monotonic_ns(),

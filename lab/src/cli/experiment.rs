@@ -237,9 +237,9 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.thesis_proxy = args.thesis_proxy;
-    let choice = prior(&args.prior, &config.scene)?;
-    config.operator.prior = choice.prior;
-    config.operator.prefer_scene_prior = choice.prefer_scene;
+    config.operator = config
+        .operator
+        .with_prior(prior(&args.prior, &config.scene)?);
     config.jitter_ms = args.jitter_ms;
     link_faults(&mut config, args)?;
     Ok(config)

@@ -74,11 +74,7 @@ impl PriorArgs {
     pub fn node_config(&self) -> anyhow::Result<node::operator::OperatorConfig> {
         let choice = mmt::model::prior::parse(&self.prior)
             .map_err(|e| anyhow::anyhow!("--prior {}: {e}", self.prior))?;
-        Ok(node::operator::OperatorConfig {
-            prior: choice.prior,
-            prefer_scene_prior: choice.prefer_scene,
-            ..node::operator::OperatorConfig::default()
-        })
+        Ok(node::operator::OperatorConfig::default().with_prior(choice))
     }
 }
 

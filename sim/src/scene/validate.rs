@@ -169,35 +169,37 @@ impl Scene {
         let Some(guess) = &self.prior else {
             return Ok(());
         };
-        let e = match guess.prior() {
-            Ok(prior) => {
-                let (normal, tangential) = (
-                    self.model.normal_structure(),
-                    self.model.tangential_structure(),
-                );
-                return node::operator::gate_prior(&prior, normal, tangential)
-                    .map(|_| ())
-                    .map_err(|e| SceneError::Field {
-                        origin: String::new(),
-                        field: "prior",
-                        value: e.to_string(),
-                        expected: "a prior the renderers accept for the scene's [model] \
-                                   structures (a sliding object needs damping above 0)",
-                    });
+        let prior = guess.prior().map_err(|e| {
+            let name = match e.field {
+                "mass_kg" => "prior.mass_kg",
+                "k_ground_n_per_m" => "prior.k_ground_n_per_m",
+                "b_ground_ns_per_m" => "prior.b_ground_ns_per_m",
+                "k_contact_n_per_m" => "prior.k_contact_n_per_m",
+                "b_contact_ns_per_m" => "prior.b_contact_ns_per_m",
+                "coulomb_friction_n" => "prior.coulomb_friction_n",
+                "spread" => "prior.spread",
+                _ => "prior",
+            };
+            SceneError::Field {
+                origin: String::new(),
+                field: name,
+                value: format!("{:?}", e.value),
+                expected: e.expected,
             }
-            Err(e) => e,
-        };
-        let name = match e.field {
-            "mass_kg" => "prior.mass_kg",
-            "k_ground_n_per_m" => "prior.k_ground_n_per_m",
-            "b_ground_ns_per_m" => "prior.b_ground_ns_per_m",
-            "k_contact_n_per_m" => "prior.k_contact_n_per_m",
-            "b_contact_ns_per_m" => "prior.b_contact_ns_per_m",
-            "coulomb_friction_n" => "prior.coulomb_friction_n",
-            "spread" => "prior.spread",
-            _ => "prior",
-        };
-        field(name, e.value, false, e.expected)
+        })?;
+        let (normal, tangential) = (
+            self.model.normal_structure(),
+            self.model.tangential_structure(),
+        );
+        node::operator::gate_prior(&prior, normal, tangential)
+            .map(|_| ())
+            .map_err(|e| SceneError::Field {
+                origin: String::new(),
+                field: "prior",
+                value: e.to_string(),
+                expected: "a prior the renderers accept for the scene's [model] structures (a \
+                           sliding object needs damping above 0)",
+            })
     }
 
     /// `[sensors]`: every noise term, named by its scene field.
