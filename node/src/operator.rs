@@ -26,7 +26,7 @@ mod stats;
 pub use prior::{GatedPrior, gate_prior};
 pub use stats::OperatorStats;
 
-use prior::prior_targets;
+use prior::{PriorStage, prior_targets};
 
 use std::sync::Arc;
 
@@ -123,18 +123,6 @@ pub(super) enum Tangential {
     Free,
     Sliding(SlidingMassRenderer),
     Shear(ShearRenderer),
-}
-
-/// The tangents' prior (issue 13): rendered until the first model, then handed over.
-#[derive(Clone, Debug)]
-enum PriorStage {
-    /// Rendering the prior's renderers (the node's `prior_axes`).
-    Prior,
-    /// The first model renders, plus an offset per tangent (prior − model at the first tick)
-    /// that falls linearly to 0; `done` ticks of it so far.
-    HandOver { offsets: [f64; 2], done: u32 },
-    /// The model alone (or no prior at all).
-    Done,
 }
 
 /// The operator node.
@@ -282,11 +270,13 @@ impl OperatorNode {
 
     fn on_parameters(&mut self, p: &wire::Parameters) {
         let mut accepted = false;
-        for set in [p.normal, p.tangential].into_iter().flatten() {
-            match gated_from_wire(&set) {
-                Ok(g) => {
-                    let mut any = self.normal.as_mut().is_some_and(|r| r.set_target(&g));
-                    for t in &mut self.tangential {
+        // Each group's set to its own renderers (a wall's are all Kelvin–Voigt).
+        for (set, normal) in [(p.normal, true), (p.tangential, false)] {
+            match set.map(|s| gated_from_wire(&s)).transpose() {
+                Ok(None) => {}
+                Ok(Some(g)) => {
+                    let mut any = normal && self.normal.as_mut().is_some_and(|r| r.set_target(&g));
+                    for t in self.tangential.iter_mut().filter(|_| !normal) {
                         any |= match t {
                             Tangential::Sliding(r) => r.set_target(&g),
                             Tangential::Shear(r) => r.set_target(&g),
@@ -444,51 +434,6 @@ impl OperatorNode {
             in_contact: tracked.in_contact,
             rendering: self.rendering,
             reduced: self.rendering_reduced(),
-        }
-    }
-
-    /// The tangential forces with the prior: the prior's alone before the first model. On the
-    /// first tick the model renders, the difference between the two becomes an offset that
-    /// falls linearly to 0 over the hand-over: no jump, and the prior's error stops growing the
-    /// moment the model is there.
-    fn with_prior(
-        &mut self,
-        f_model: [f64; 2],
-        inputs: [[f64; 2]; 2],
-        in_contact: bool,
-    ) -> [f64; 2] {
-        match &mut self.prior_tangential {
-            PriorStage::Done => f_model,
-            PriorStage::Prior => {
-                let mut f_prior = [0.0; 2];
-                let axes = self.prior_axes.iter_mut().zip(inputs);
-                for (f, (axis, [x, v])) in f_prior.iter_mut().zip(axes) {
-                    *f = step_tangential(axis, x, v, in_contact);
-                }
-                if self.rendering {
-                    let offsets = [f_prior[0] - f_model[0], f_prior[1] - f_model[1]];
-                    self.prior_tangential = PriorStage::HandOver { offsets, done: 0 };
-                }
-                f_prior
-            }
-            PriorStage::HandOver { offsets, done } => {
-                let left = 1.0 - f64::from(*done) / f64::from(self.handover_ticks.max(1));
-                let left = left.max(0.0);
-                [
-                    f_model[0] + left * offsets[0],
-                    f_model[1] + left * offsets[1],
-                ]
-            }
-        }
-    }
-
-    /// One tick of the tangents' hand-over; it ends after its length.
-    fn advance_handover(&mut self) {
-        if let PriorStage::HandOver { done, .. } = &mut self.prior_tangential {
-            *done += 1;
-            if *done >= self.handover_ticks {
-                self.prior_tangential = PriorStage::Done;
-            }
         }
     }
 

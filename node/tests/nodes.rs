@@ -432,3 +432,70 @@ fn the_operator_renders_the_scenes_prior_unless_told_otherwise() {
         .to_string();
     assert!(e.contains("tangential.mass_kg = -1"), "{e}");
 }
+
+/// Where both axis groups are Kelvin–Voigt (a wall), each group's set reaches its own renderers
+/// only: a message carrying a soft normal and a stiff shear renders both as sent (the second set
+/// used to become every Kelvin–Voigt renderer's target).
+#[test]
+fn each_axis_groups_set_reaches_its_own_renderers_only() {
+    let scene = Scene::wall();
+    let settings = OperatorSettings::from_welcome(&scene.summary()).unwrap();
+    let config = OperatorConfig {
+        local_contact: false,
+        ..OperatorConfig::default()
+    };
+    let frame = SurfaceFrame::from_normal(scene.surface.normal).unwrap();
+    let surface = scene.surface.point_m;
+    let depth = 0.004;
+    // Inside the wall by `depth`, displaced along the first tangent by `shear` from the onset.
+    let at = |shear: f64| {
+        let p = mmt::vec3::add(surface, mmt::vec3::scale(frame.normal, -depth));
+        mmt::vec3::add(p, mmt::vec3::scale(frame.tangent1, shear))
+    };
+    let mut op = OperatorNode::new(settings, config, at(0.0)).unwrap();
+    let set = |k, b| ParameterSet {
+        sample_time_ns: 0,
+        residual: 0.0,
+        terms: ModelTerms::KelvinVoigt {
+            k_n_per_m: k,
+            b_ns_per_m: b,
+        },
+    };
+    op.on_message(
+        &Message::Parameters(Parameters {
+            header: header(1, 0),
+            model_id: 1,
+            normal: Some(set(1_000.0, 5.0)),
+            tangential: Some(set(3_000.0, 5.0)),
+        }),
+        0,
+    );
+    let mut force = [0.0; 3];
+    for k in 0..1_000i64 {
+        let now = k * 1_000_000;
+        // 1 mm of shear over the first 0.5 s, then held.
+        let shear = 0.001 * (k.min(500) as f64 / 500.0);
+        let x = at(shear);
+        op.on_message(
+            &Message::Contact(Contact {
+                header: header(2 + k as u64, now),
+                command_sample_time_ns: now,
+                state: ContactState::Contact,
+                proxy_position_m: at(0.0),
+                normal: Some(frame.normal),
+                frame: Some(surface_frame_to_wire(&frame)),
+                surface_point_m: Some(surface),
+                penetration_m: Some(depth),
+            }),
+            now,
+        );
+        let v = if k < 500 { 0.002 } else { 0.0 };
+        force = op
+            .step(now, x, mmt::vec3::scale(frame.tangent1, v))
+            .force_n;
+    }
+    let normal = mmt::vec3::dot(force, frame.normal);
+    let shear = mmt::vec3::dot(force, frame.tangent1);
+    assert!((normal - 1_000.0 * depth).abs() < 0.05, "normal {normal} N");
+    assert!((shear + 3_000.0 * 0.001).abs() < 0.05, "shear {shear} N");
+}
