@@ -27,13 +27,16 @@
 //!   wrong; rendering them cost 87 % error for 0.5 s in the prototype.
 
 mod confidence;
+mod first;
 mod friction;
 mod gaps;
 mod solve;
 mod stats;
+mod validate;
 
 use confidence::Confidence;
 pub use confidence::ConfidenceConfig;
+pub use first::FirstFitConfig;
 pub use friction::{FrictionObserver, ObservedObject};
 pub use gaps::{GAP_MUTE_M, MAX_FILLED_PERIODS, MOTION_TOLERANCE_M, SETTLE_CUTOFF_PERIODS};
 pub use stats::{EstimatorStats, RejectionCounts};
@@ -143,6 +146,9 @@ pub struct EstimatorConfig {
     /// 0). The choice is reported ([`EstimatorStats::selected`]). Default false: the scene's
     /// structure.
     pub select_structure: bool,
+    /// A Kelvin–Voigt group's fast first fit, published before its RLS set ([`FirstFitConfig`]).
+    #[serde(default)]
+    pub first_fit: FirstFitConfig,
 }
 
 impl EstimatorConfig {
@@ -170,6 +176,7 @@ impl EstimatorConfig {
             observer_wait_s: 1.0,
             reduced_model: true,
             select_structure: false,
+            first_fit: FirstFitConfig::default(),
         }
     }
 }
@@ -279,13 +286,13 @@ pub struct Estimator {
     /// start).
     settled: bool,
     stats: EstimatorStats,
+    first: first::FirstFit,
 }
 
 impl Estimator {
     /// Validates the configuration and builds the pipeline at rest.
     pub fn new(config: EstimatorConfig) -> Result<Self, EstimatorError> {
-        Self::validate(&config)?;
-        config.confidence.validate()?;
+        config.validate()?;
         let filter = RegressorFilter::new(config.filter)?;
         let mut columns = config.structure.columns();
         if config.intercept {
@@ -331,61 +338,9 @@ impl Estimator {
             pending: None,
             settled: false,
             stats: EstimatorStats::default(),
+            first: first::FirstFit::default(),
             config,
         })
-    }
-
-    /// The first invalid scalar field, named.
-    fn validate(config: &EstimatorConfig) -> Result<(), EstimatorError> {
-        let field = |field, value: f64, ok: bool, expected| {
-            if ok {
-                Ok(())
-            } else {
-                Err(EstimatorError::Field {
-                    field,
-                    value,
-                    expected,
-                })
-            }
-        };
-        field(
-            "axes",
-            config.axes as f64,
-            (1..=MAX_AXES).contains(&config.axes),
-            "1 or 2",
-        )?;
-        let g = config.onset_guard_s;
-        field("onset_guard_s", g, g.is_finite() && g >= 0.0, "≥ 0 s")?;
-        let p = config.back_solve_period_s;
-        field("back_solve_period_s", p, p.is_finite() && p > 0.0, "> 0 s")?;
-        let d = config.detector_mute_s;
-        field("detector_mute_s", d, d.is_finite() && d >= 0.0, "≥ 0 s")?;
-        let r = config.observer_discount;
-        field("observer_discount", r, r > 0.0 && r <= 1.0, "in (0, 1]")?;
-        let w = config.observer_wait_s;
-        field(
-            "observer_wait_s",
-            w,
-            w >= 0.0,
-            "≥ 0 s (∞ waits for a confirmed set)",
-        )?;
-        let v = config.onset_intercept_covariance;
-        field(
-            "onset_intercept_covariance",
-            v,
-            v.is_finite() && v > 0.0,
-            "> 0",
-        )?;
-        let m = config.gates.max_contact_deflection_m;
-        field(
-            "gates.max_contact_deflection_m",
-            m,
-            m.is_finite() && m > 0.0,
-            "a finite length > 0 m",
-        )?;
-        let t = config.tare_time_constant_s;
-        field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
-        Ok(())
     }
 
     /// One tick at time `now_s` [s]: the measurement of each axis (`config.axes` of them) and
@@ -443,6 +398,7 @@ impl Estimator {
         }
         if detected {
             self.start_new_model();
+            self.first.restart(now_s);
             self.stats.new_objects += 1;
             update.new_object = true;
         }
@@ -450,6 +406,7 @@ impl Estimator {
             self.next_back_solve_s = now_s + self.config.back_solve_period_s;
             self.back_solve(&mut update);
         }
+        self.fit_first(now_s, &samples[..n], &mut update);
         update
     }
 
@@ -460,6 +417,7 @@ impl Estimator {
         }
         if self.phase == Phase::Free {
             self.contact_since_s = now_s;
+            self.first.restart(now_s);
             self.phase = Phase::Guard;
             if !self.ever_contact {
                 self.ever_contact = true;

@@ -56,6 +56,16 @@ pub struct EstimatorStats {
     /// follows ([`super::GAP_MUTE_M`]): the new-object detector was muted, learning went on.
     #[serde(default)]
     pub gap_mutes: u64,
+    /// First fits of a Kelvin–Voigt group published before its RLS set
+    /// ([`super::FirstFitConfig`]); not in `confirmed`.
+    #[serde(default)]
+    pub first_fits: u64,
+    /// First-fit solves a gate rejected.
+    #[serde(default)]
+    pub first_fit_rejections: u64,
+    /// Contact time [s] from the onset to the run's first published first fit.
+    #[serde(default)]
+    pub first_fit_after_s: Option<f64>,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).

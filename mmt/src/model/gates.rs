@@ -404,6 +404,18 @@ pub fn gate_physical(structure: Structure, params: &Params) -> Result<Gated, Gat
     })
 }
 
+/// Gates a set fitted directly in physical terms (the estimator's first fit of a Kelvin–Voigt
+/// contact): [`gate_physical`]'s gates, with the fit's relative residual kept for the report.
+pub fn gate_fit(
+    structure: Structure,
+    kv: KelvinVoigt,
+    residual: f64,
+) -> Result<Gated, GateRejection> {
+    let mut gated = gate_physical(structure, &Params::KelvinVoigt(kv))?;
+    gated.solved.residual = residual;
+    Ok(gated)
+}
+
 /// Gates 1–3 on θ. `massless_ok` admits `e = 0` (a given first-order model).
 fn check_theta(
     structure: Structure,
