@@ -228,10 +228,22 @@ impl FirstFit {
         if !(det > 1e-3 * s.xx * s.vv) {
             return None;
         }
-        let k = (s.vv * s.xf - s.xv * s.vf) / det;
-        let b = (s.xx * s.vf - s.xv * s.xf) / det;
-        let ssr = (s.ff - k * s.xf - b * s.vf).max(0.0);
-        let sigma2 = ssr / (s.n - 2.0);
+        let (k, b) = (
+            (s.vv * s.xf - s.xv * s.vf) / det,
+            (s.xx * s.vf - s.xv * s.xf) / det,
+        );
+        // Non-negative damping: where the free fit's is negative, the fit with b = 0 (a force that
+        // lags the position by τ reads as b = −k·τ: −2 N·s/m on a 2,000 N/m wall at 1 ms,
+        // measured on the wall scene's sensors, whose own b is 5 N·s/m).
+        let (k, b, ssr, terms) = if b >= 0.0 {
+            let ssr = (s.ff - k * s.xf - b * s.vf).max(0.0);
+            let sigma2 = ssr / (s.n - 2.0);
+            (k, b, ssr, [sigma2 * s.vv / det, sigma2 * s.xx / det])
+        } else {
+            let k = s.xf / s.xx;
+            let ssr = (s.ff - k * s.xf).max(0.0);
+            (k, 0.0, ssr, [ssr / (s.n - 1.0) / s.xx, 0.0])
+        };
         let (x_rms, v_rms, f_rms) = (
             (s.xx / s.n).sqrt(),
             (s.vv / s.n).sqrt(),
@@ -244,10 +256,7 @@ impl FirstFit {
                 b_ns_per_m: b,
             },
             residual: (ssr / s.ff).sqrt(),
-            term_error: [
-                term(sigma2 * s.vv / det, x_rms),
-                term(sigma2 * s.xx / det, v_rms),
-            ],
+            term_error: [term(terms[0], x_rms), term(terms[1], v_rms)],
             force_rms_n: f_rms,
             velocity_rms: v_rms,
         };
@@ -423,6 +432,35 @@ mod tests {
         let mut off = kelvin_voigt();
         off.first_fit.enabled = false;
         assert_eq!(run(off, K, B, 0.0, 0.3).stats().first_fits, 0);
+    }
+
+    /// A stiff, barely damped contact whose force lags the position by 1 ms (a sensor's delay):
+    /// the free fit's damping is `b − k·τ` < 0; the set published holds b at 0 and keeps k.
+    #[test]
+    fn a_lagging_force_on_a_stiff_contact_gives_no_damping_not_negative_damping() {
+        let (k, b, lag) = (2_000.0, 0.5, 1e-3);
+        let mut fit = FirstFit::default();
+        fit.restart(0.0);
+        let mut t = 0.1;
+        while t < 0.2 {
+            let (x, v) = press(t);
+            let (xl, vl) = press(t - lag);
+            fit.push(x, v, -(k * xl + b * vl));
+            t += H;
+        }
+        let free = fit.sums;
+        let det = free.xx * free.vv - free.xv * free.xv;
+        assert!(
+            (free.xx * free.vf - free.xv * free.xf) / det < 0.0,
+            "the free fit's b"
+        );
+        let config = FirstFitConfig::default();
+        let gates = GateConfig::default();
+        // The first solve only primes the check of stillness.
+        assert_eq!(fit.solve(&config, &gates), Err(Withheld::Moving));
+        let kv = fit.solve(&config, &gates).unwrap().kelvin_voigt().unwrap();
+        assert_eq!(kv.b_ns_per_m, 0.0);
+        assert!((kv.k_n_per_m / k - 1.0).abs() < 0.02, "{kv:?}");
     }
 
     #[test]
