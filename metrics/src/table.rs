@@ -133,6 +133,16 @@ fn prior_rows(out: &mut String, r: &ExperimentReport) {
         stages,
         "",
     );
+    // The telerobot's first fit of each Kelvin–Voigt group, after its onset.
+    let first: Vec<String> = r
+        .estimators
+        .iter()
+        .map(|e| match (e.stats.first_fit_after_s, e.stats.first_fits) {
+            (Some(s), n) => format!("{} {s:.2} s ({n} sent)", e.axes),
+            (None, _) => format!("{} —", e.axes),
+        })
+        .collect();
+    row(out, "first fit after contact", first.join(", "), "");
 }
 
 /// How soon things happen: stable parameters, rendering, the estimator's fit, and the contact

@@ -46,6 +46,10 @@ pub struct ExperimentArgs {
     /// that bridges holes in the cloud: the baseline of the camera figures.
     #[arg(long)]
     thesis_proxy: bool,
+    /// Leave out the telerobot's first fit of a Kelvin–Voigt group (the baseline of issue 13's
+    /// fast first model): each group waits for its RLS set.
+    #[arg(long)]
+    no_first_fit: bool,
     /// What the operator renders before the first model: scene (the default: the scene's
     /// [prior] when it declares one, else generic), generic (the centre of the soft-object
     /// class), none (free space), truth (the scene's true object: the floor a perfect prior
@@ -237,6 +241,7 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     config.operator.local_contact = !args.remote_contact;
     config.operator.state_sync = !args.no_sync;
     config.thesis_proxy = args.thesis_proxy;
+    config.first_fit = !args.no_first_fit;
     config.operator = config
         .operator
         .with_prior(prior(&args.prior, &config.scene)?);

@@ -109,6 +109,14 @@ pub struct ExperimentConfig {
     /// bridges a camera's holes (`mmt::contact::bridge`): the baseline of issue 14's figures.
     #[serde(default)]
     pub thesis_proxy: bool,
+    /// The telerobot publishes a Kelvin–Voigt group's first fit before its RLS set
+    /// (`mmt::estimator::FirstFitConfig`, issue 13 item 2). Default true; false is the baseline.
+    #[serde(default = "yes")]
+    pub first_fit: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl ExperimentConfig {
@@ -127,6 +135,7 @@ impl ExperimentConfig {
             trajectory: kind.default_trajectory().to_string(),
             operator: OperatorConfig::default(),
             thesis_proxy: false,
+            first_fit: true,
         }
     }
 

@@ -163,6 +163,8 @@ impl Harness {
             settings.proxy.bridge_holes = false;
             operator_settings.proxy.bridge_holes = false;
         }
+        settings.normal.first_fit.enabled &= config.first_fit;
+        settings.tangential.first_fit.enabled &= config.first_fit;
         let trajectory = by_name_seeded(
             &config.trajectory,
             config.seconds,
