@@ -490,9 +490,7 @@ fn each_axis_groups_set_reaches_its_own_renderers_only() {
             now,
         );
         let v = if k < 500 { 0.002 } else { 0.0 };
-        force = op
-            .step(now, x, mmt::vec3::scale(frame.tangent1, v))
-            .force_n;
+        force = op.step(now, x, mmt::vec3::scale(frame.tangent1, v)).force_n;
     }
     let normal = mmt::vec3::dot(force, frame.normal);
     let shear = mmt::vec3::dot(force, frame.tangent1);
