@@ -398,7 +398,7 @@ impl Estimator {
         }
         if detected {
             self.start_new_model();
-            self.first.restart(now_s);
+            self.first.restart(now_s, false);
             self.stats.new_objects += 1;
             update.new_object = true;
         }
@@ -417,7 +417,7 @@ impl Estimator {
         }
         if self.phase == Phase::Free {
             self.contact_since_s = now_s;
-            self.first.restart(now_s);
+            self.first.restart(now_s, self.confirmed_this_model);
             self.phase = Phase::Guard;
             if !self.ever_contact {
                 self.ever_contact = true;

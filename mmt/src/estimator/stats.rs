@@ -60,6 +60,10 @@ pub struct EstimatorStats {
     /// ([`super::FirstFitConfig`]); not in `confirmed`.
     #[serde(default)]
     pub first_fits: u64,
+    /// New objects declared by a re-contact's first fit ([`super::FirstFitConfig::
+    /// new_object_change`]); also in `new_objects`.
+    #[serde(default)]
+    pub first_fit_new_objects: u64,
     /// First-fit solves a gate rejected.
     #[serde(default)]
     pub first_fit_rejections: u64,
