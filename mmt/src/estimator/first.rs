@@ -161,12 +161,12 @@ impl FirstFit {
         };
     }
 
-    /// Whether `fitted` differs from `confirmed` by more than `limit` (`k` relative to the fit's,
-    /// `b` as a force relative to the RMS force).
-    fn differs(&self, fitted: KelvinVoigt, confirmed: KelvinVoigt, limit: f64) -> bool {
-        let dk = (fitted.k_n_per_m - confirmed.k_n_per_m).abs() / fitted.k_n_per_m;
-        let db = (fitted.b_ns_per_m - confirmed.b_ns_per_m).abs() * self.b_scale;
-        dk.max(db) > limit
+    /// How far `fitted` is from `other`: `k` relative to the fit's, `b` as a force relative to
+    /// the RMS force (with the last solve's scales), the larger.
+    fn change(&self, fitted: KelvinVoigt, other: KelvinVoigt) -> f64 {
+        let dk = (fitted.k_n_per_m - other.k_n_per_m).abs() / fitted.k_n_per_m;
+        let db = (fitted.b_ns_per_m - other.b_ns_per_m).abs() * self.b_scale;
+        dk.max(db)
     }
 
     /// Adds one axis's sample (position [m], velocity [m/s], tared force on the tool [N]). The
@@ -202,12 +202,7 @@ impl FirstFit {
         let previous = self.previous.replace(solve.kv);
         self.b_scale = solve.velocity_rms / solve.force_rms_n;
         let gated = self.gate(&solve, config, gates).map_err(Withheld::Gate)?;
-        let moved = |from: KelvinVoigt| {
-            let dk = (solve.kv.k_n_per_m - from.k_n_per_m).abs() / solve.kv.k_n_per_m;
-            let db = (solve.kv.b_ns_per_m - from.b_ns_per_m).abs() * solve.velocity_rms
-                / solve.force_rms_n;
-            dk.max(db) > config.max_change
-        };
+        let moved = |from: KelvinVoigt| self.change(solve.kv, from) > config.max_change;
         let publish = match (self.published, previous) {
             (None, Some(p)) => !moved(p),
             (None, None) => false,
@@ -299,8 +294,9 @@ impl FirstFit {
 
 impl super::Estimator {
     /// One tick of the first fit, after the RLS's: the samples join the fit while a
-    /// Kelvin–Voigt group is in contact and its model has no confirmed set; a due solve that
-    /// passes is this tick's update (unless the RLS confirmed one this tick).
+    /// Kelvin–Voigt group is in contact and its model has no confirmed set (or, on a re-contact,
+    /// until the check has decided); a due solve that passes is this tick's update (unless the
+    /// RLS confirmed one this tick), or the check's answer.
     pub(super) fn fit_first(
         &mut self,
         now_s: f64,
@@ -341,10 +337,7 @@ impl super::Estimator {
         let (Some(fit), Some(old)) = (fitted.kelvin_voigt(), confirmed) else {
             return;
         };
-        if self
-            .first
-            .differs(fit, old, self.config.first_fit.new_object_change)
-        {
+        if self.first.change(fit, old) > self.config.first_fit.new_object_change {
             self.start_new_model();
             self.stats.new_objects += 1;
             self.stats.first_fit_new_objects += 1;
