@@ -44,7 +44,8 @@ pub struct FirstFitConfig {
     pub max_change: f64,
     /// On a re-contact with a model that has a confirmed set, the fit checks the object instead
     /// of publishing: its first still set differing from the confirmed one by more than this
-    /// (`k` relative, `b` as a force) is a different object at the same place. The model is then
+    /// (`k` by a factor beyond `1 +` this either way, `b` as a force relative to the RMS force)
+    /// is a different object at the same place. The model is then
     /// reset and the fit published at once (issue 13 item 4): a 3 × stiffer contact was
     /// otherwise rendered with the old model, adapting by forgetting, for 1.9 s (measured).
     /// Default 0.3.
@@ -110,6 +111,16 @@ pub(super) enum Withheld {
     Moving,
 }
 
+/// What a re-contact's (or a reset's) fit does instead of publishing at once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Check {
+    /// A re-contact with a confirmed model: a differing fit starts a new model.
+    Object,
+    /// The RLS's detector has just started a new model in contact: a differing fit is published
+    /// (the object did change), an agreeing one leaves the last confirmed set rendered.
+    AfterReset,
+}
+
 /// The sums of the normal equations of `F = k x + b ẋ` since the fit (re)started.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Sums {
@@ -144,15 +155,15 @@ pub(super) struct FirstFit {
     /// `ẋ_rms / F_rms` of the last solve: a damping difference as a relative force.
     b_scale: f64,
     /// This episode checks the object against a confirmed set rather than publishing.
-    check: bool,
+    check: Option<Check>,
     /// The check has decided (the same object, or a new one declared).
     decided: bool,
 }
 
 impl FirstFit {
-    /// Starts over at `now_s`: a contact onset, or a new object in contact; `check` when the
-    /// model has a confirmed set to check the object against.
-    pub(super) fn restart(&mut self, now_s: f64, check: bool) {
+    /// Starts over at `now_s`: a contact onset, or a new object in contact; `check` when there
+    /// is a confirmed set to check the object against.
+    pub(super) fn restart(&mut self, now_s: f64, check: Option<Check>) {
         *self = FirstFit {
             since_s: now_s,
             next_solve_s: now_s,
@@ -165,8 +176,12 @@ impl FirstFit {
     /// the RMS force (with the last solve's scales), the larger.
     fn change(&self, fitted: KelvinVoigt, other: KelvinVoigt) -> f64 {
         let dk = (fitted.k_n_per_m - other.k_n_per_m).abs() / fitted.k_n_per_m;
-        let db = (fitted.b_ns_per_m - other.b_ns_per_m).abs() * self.b_scale;
-        dk.max(db)
+        dk.max(self.damping_change(fitted, other))
+    }
+
+    /// The difference of two dampings as a force relative to the RMS force.
+    fn damping_change(&self, a: KelvinVoigt, b: KelvinVoigt) -> f64 {
+        (a.b_ns_per_m - b.b_ns_per_m).abs() * self.b_scale
     }
 
     /// Adds one axis's sample (position [m], velocity [m/s], tared force on the tool [N]). The
@@ -308,9 +323,14 @@ impl super::Estimator {
         if !config.enabled
             || self.structure != Structure::KelvinVoigt
             || self.phase == super::Phase::Free
-            || (!check && self.confirmed_this_model)
+            || (check.is_none() && self.confirmed_this_model)
             || self.first.decided
         {
+            return;
+        }
+        if check.is_some() && update.confirmed.is_some() {
+            // The RLS confirmed a set on this contact's data: it has answered the check.
+            self.first.decided = true;
             return;
         }
         for (s, tare) in samples.iter().zip(self.tare) {
@@ -322,7 +342,7 @@ impl super::Estimator {
             return;
         }
         match self.first.solve(&config, &self.config.gates) {
-            Ok(g) if check => self.check_object(now_s, g, update),
+            Ok(g) if let Some(check) = check => self.check_object(now_s, g, check, update),
             Ok(g) => self.publish_first(now_s, g, update),
             Err(Withheld::Gate(_)) => self.stats.first_fit_rejections += 1,
             Err(Withheld::NotExcited | Withheld::Moving) => {}
@@ -331,22 +351,35 @@ impl super::Estimator {
 
     /// A re-contact's first still set against the model's confirmed one: the same object ends
     /// the check; a different one starts a new model with this set.
-    fn check_object(&mut self, now_s: f64, fitted: Gated, update: &mut super::Update) {
+    fn check_object(
+        &mut self,
+        now_s: f64,
+        fitted: Gated,
+        check: Check,
+        update: &mut super::Update,
+    ) {
         self.first.decided = true;
         let confirmed = self.latest.as_ref().and_then(Gated::kelvin_voigt);
         let (Some(fit), Some(old)) = (fitted.kelvin_voigt(), confirmed) else {
             return;
         };
-        if self.first.change(fit, old) > self.config.first_fit.new_object_change {
+        // Symmetric in the two stiffnesses: 30 % stiffer or softer alike.
+        let dk = (fit.k_n_per_m / old.k_n_per_m).ln().abs();
+        let db = self.first.damping_change(fit, old);
+        let limit = self.config.first_fit.new_object_change;
+        if dk <= (1.0 + limit).ln() && db <= limit {
+            return;
+        }
+        if check == Check::Object {
             self.start_new_model();
             self.stats.new_objects += 1;
             self.stats.first_fit_new_objects += 1;
             update.new_object = true;
-            // The fit goes on publishing for the new model until its RLS set.
-            self.first.check = false;
-            self.first.decided = false;
-            self.publish_first(now_s, fitted, update);
         }
+        // The fit goes on publishing for the new model until its RLS set.
+        self.first.check = None;
+        self.first.decided = false;
+        self.publish_first(now_s, fitted, update);
     }
 
     fn publish_first(&mut self, now_s: f64, g: Gated, update: &mut super::Update) {

@@ -397,8 +397,11 @@ impl Estimator {
             }
         }
         if detected {
+            // Mostly the detector's false alarms (`solve.rs`): the first fit checks the object
+            // against the last confirmed set before it replaces it.
+            let check = self.latest.is_some().then_some(first::Check::AfterReset);
             self.start_new_model();
-            self.first.restart(now_s, false);
+            self.first.restart(now_s, check);
             self.stats.new_objects += 1;
             update.new_object = true;
         }
@@ -417,7 +420,6 @@ impl Estimator {
         }
         if self.phase == Phase::Free {
             self.contact_since_s = now_s;
-            self.first.restart(now_s, self.confirmed_this_model);
             self.phase = Phase::Guard;
             if !self.ever_contact {
                 self.ever_contact = true;
@@ -427,6 +429,8 @@ impl Estimator {
                 self.stats.onset_resets += 1;
                 update.new_object = true;
             }
+            let check = self.confirmed_this_model.then_some(first::Check::Object);
+            self.first.restart(now_s, check);
             self.restart_intercepts();
         }
         if self.phase == Phase::Guard && now_s - self.contact_since_s >= self.config.onset_guard_s {

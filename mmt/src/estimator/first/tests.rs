@@ -1,6 +1,6 @@
 //! The first fit against exact answers, noise, bad data and a changed object.
 
-use super::super::{AxisSample, Estimator, EstimatorConfig, EstimatorError};
+use super::super::{AxisSample, Estimator, EstimatorConfig, EstimatorError, ResetPolicy};
 use super::*;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -117,7 +117,7 @@ fn an_active_law_a_still_hold_noise_or_a_sliding_object_publish_no_first_fit() {
     assert_eq!(slide.stats().first_fits, 0);
     published();
     let mut fit = FirstFit::default();
-    fit.restart(0.0, false);
+    fit.restart(0.0, None);
     for _ in 0..100 {
         fit.push(-0.004, 0.0, 3.2);
     }
@@ -135,7 +135,7 @@ fn an_active_law_a_still_hold_noise_or_a_sliding_object_publish_no_first_fit() {
 fn a_lagging_force_on_a_stiff_contact_gives_no_damping_not_negative_damping() {
     let (k, b, lag) = (2_000.0, 0.5, 1e-3);
     let mut fit = FirstFit::default();
-    fit.restart(0.0, false);
+    fit.restart(0.0, None);
     let mut t = 0.1;
     while t < 0.2 {
         let (x, v) = press(t);
@@ -161,17 +161,36 @@ fn a_lagging_force_on_a_stiff_contact_gives_no_damping_not_negative_damping() {
 /// Two presses: the first object from 0.1 s to 1.6 s, then `second_k` from 2.0 s to 4.0 s.
 /// The updates' times and sets after the second onset, and the estimator.
 fn re_touch(second_k: f64) -> (Vec<(f64, bool, Option<KelvinVoigt>)>, Estimator) {
-    let mut est = Estimator::new(kelvin_voigt()).unwrap();
+    re_touch_with(kelvin_voigt(), second_k, 0.0, 0.0)
+}
+
+/// [`re_touch`] with `config`, force noise `noise_n` [N] and the force lagging the position by
+/// `lag_s`.
+fn re_touch_with(
+    config: EstimatorConfig,
+    second_k: f64,
+    noise_n: f64,
+    lag_s: f64,
+) -> (Vec<(f64, bool, Option<KelvinVoigt>)>, Estimator) {
+    let mut est = Estimator::new(config).unwrap();
+    let mut rng = Pcg64::seed_from_u64(7);
+    let noise = Normal::new(0.0, noise_n.max(1e-300)).unwrap();
+    let motion = |t: f64| match t {
+        t if t < 1.6 => (K, press(t)),
+        t if t < 2.0 => (K, (0.001, 0.0)),
+        t => (second_k, press(t - 1.9)),
+    };
     let mut after = Vec::new();
     for i in 0..4_000 {
         let t = i as f64 * H;
-        let (k, (x, v)) = match t {
-            t if t < 1.6 => (K, press(t)),
-            t if t < 2.0 => (K, (0.001, 0.0)),
-            t => (second_k, press(t - 1.9)),
-        };
+        let (_, (x, v)) = motion(t);
+        let (k, (xl, vl)) = motion(t - lag_s);
         let in_contact = x < 0.0;
-        let force_n = if in_contact { -(k * x + B * v) } else { 0.0 };
+        let force_n = if in_contact {
+            -(k * xl + B * vl) + noise_n.min(1.0) * noise.sample(&mut rng)
+        } else {
+            0.0
+        };
         let s = AxisSample {
             position_m: x,
             velocity_m_per_s: v,
@@ -183,6 +202,32 @@ fn re_touch(second_k: f64) -> (Vec<(f64, bool, Option<KelvinVoigt>)>, Estimator)
         }
     }
     (after, est)
+}
+
+/// The same object re-touched with sensor noise and a force lagging the position by 1 ms is not
+/// declared new; under [`ResetPolicy::EveryOnset`] (a new model at every onset, the thesis's
+/// way) the re-touch is fitted and published again, counted once.
+#[test]
+fn a_noisy_lagging_re_touch_of_the_same_object_is_the_same_object() {
+    let (after, est) = re_touch_with(kelvin_voigt(), K, 0.05, 1e-3);
+    assert!(after.iter().all(|u| !u.1), "{:?}", est.stats());
+    assert_eq!(est.stats().first_fit_new_objects, 0);
+    let mut every = kelvin_voigt();
+    every.reset = ResetPolicy::EveryOnset;
+    let (after, est) = re_touch_with(every, K, 0.05, 1e-3);
+    let s = est.stats();
+    assert_eq!(
+        (s.onset_resets, s.new_objects, s.first_fit_new_objects),
+        (1, 0, 0),
+        "{s:?}"
+    );
+    let (t_fit, _, kv) = after.iter().find(|u| u.2.is_some()).unwrap();
+    assert!(
+        t_fit - 2.001 <= 0.1,
+        "re-fitted {:.3} s after the onset",
+        t_fit - 2.001
+    );
+    assert!((kv.unwrap().k_n_per_m / K - 1.0).abs() < 0.05, "{kv:?}");
 }
 
 /// Issue 13 item 4, for a Kelvin–Voigt group: a different object at the same place (three
