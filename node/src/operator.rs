@@ -26,7 +26,7 @@ mod stats;
 pub use prior::{GatedPrior, gate_prior};
 pub use stats::OperatorStats;
 
-use prior::{PriorStage, prior_targets};
+use prior::{PriorStage, set_tangential_targets};
 
 use std::sync::Arc;
 
@@ -191,7 +191,7 @@ impl OperatorNode {
         let mut prior_axes = [tangent()?, tangent()?];
         let prior_tangential = match &gated.tangential {
             Some(g) => {
-                prior_targets(&mut prior_axes, g);
+                set_tangential_targets(&mut prior_axes, g);
                 PriorStage::Prior
             }
             None => PriorStage::Done,
@@ -275,14 +275,11 @@ impl OperatorNode {
             match set.map(|s| gated_from_wire(&s)).transpose() {
                 Ok(None) => {}
                 Ok(Some(g)) => {
-                    let mut any = normal && self.normal.as_mut().is_some_and(|r| r.set_target(&g));
-                    for t in self.tangential.iter_mut().filter(|_| !normal) {
-                        any |= match t {
-                            Tangential::Sliding(r) => r.set_target(&g),
-                            Tangential::Shear(r) => r.set_target(&g),
-                            Tangential::Free => false,
-                        };
-                    }
+                    let any = if normal {
+                        self.normal.as_mut().is_some_and(|r| r.set_target(&g))
+                    } else {
+                        set_tangential_targets(&mut self.tangential, &g)
+                    };
                     accepted |= any;
                     if any {
                         self.stats.parameter_sets += 1;

@@ -43,23 +43,13 @@ impl Default for ConfidenceConfig {
 
 impl ConfidenceConfig {
     pub(super) fn validate(&self) -> Result<(), EstimatorError> {
-        let checks = [
+        super::validate::positive(&[
             ("confidence.window_s", self.window_s),
             ("confidence.max_relative_change", self.max_relative_change),
             ("confidence.max_informed_change", self.max_informed_change),
             ("confidence.max_prediction_error", self.max_prediction_error),
             ("confidence.exit_factor", self.exit_factor),
-        ];
-        for (field, value) in checks {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(EstimatorError::Field {
-                    field,
-                    value,
-                    expected: "a positive number",
-                });
-            }
-        }
-        Ok(())
+        ])
     }
 }
 

@@ -38,9 +38,9 @@ pub struct FirstFitConfig {
     /// Largest standard error of each term's force (`σ_k·x_rms`, `σ_b·ẋ_rms`) relative to the
     /// RMS force. Default 0.05.
     pub max_term_error: f64,
-    /// Largest change of `k` (and of `b`'s force) since the previous solve for a set to be
-    /// first published, and the change after which a published set is published again. Default
-    /// 0.1.
+    /// Largest change since the previous solve for a set to be first published, and the change
+    /// after which a published set is published again (`k` by a factor of `1 +` this either
+    /// way, `b` as a force relative to the RMS force). Default 0.1.
     pub max_change: f64,
     /// On a re-contact with a model that has a confirmed set, the fit checks the object instead
     /// of publishing: its first still set differing from the confirmed one by more than this
@@ -67,35 +67,20 @@ impl Default for FirstFitConfig {
 
 impl FirstFitConfig {
     pub(super) fn validate(&self) -> Result<(), EstimatorError> {
-        let checks = [
-            ("first_fit.min_window_s", self.min_window_s, 0.0),
-            (
-                "first_fit.max_residual",
-                self.max_residual,
-                f64::MIN_POSITIVE,
-            ),
-            (
-                "first_fit.max_term_error",
-                self.max_term_error,
-                f64::MIN_POSITIVE,
-            ),
-            ("first_fit.max_change", self.max_change, f64::MIN_POSITIVE),
-            (
-                "first_fit.new_object_change",
-                self.new_object_change,
-                f64::MIN_POSITIVE,
-            ),
-        ];
-        for (field, value, min) in checks {
-            if !(value.is_finite() && value >= min) {
-                return Err(EstimatorError::Field {
-                    field,
-                    value,
-                    expected: "a finite number ≥ 0 (> 0 for the thresholds)",
-                });
-            }
+        let w = self.min_window_s;
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(EstimatorError::Field {
+                field: "first_fit.min_window_s",
+                value: w,
+                expected: "≥ 0 s",
+            });
         }
-        Ok(())
+        super::validate::positive(&[
+            ("first_fit.max_residual", self.max_residual),
+            ("first_fit.max_term_error", self.max_term_error),
+            ("first_fit.max_change", self.max_change),
+            ("first_fit.new_object_change", self.new_object_change),
+        ])
     }
 }
 
@@ -133,6 +118,13 @@ struct Sums {
     ff: f64,
 }
 
+impl Sums {
+    /// `ẋ_rms / F_rms`: a damping difference as a force relative to the RMS force.
+    fn damping_scale(&self) -> f64 {
+        (self.vv / self.ff).sqrt()
+    }
+}
+
 /// One solve: the set and the data's RMS force.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Solve {
@@ -141,7 +133,6 @@ struct Solve {
     /// Standard error of each term's force, relative to the RMS force.
     term_error: [f64; 2],
     force_rms_n: f64,
-    velocity_rms: f64,
 }
 
 /// The running fit of one group.
@@ -152,8 +143,6 @@ pub(super) struct FirstFit {
     next_solve_s: f64,
     previous: Option<KelvinVoigt>,
     published: Option<KelvinVoigt>,
-    /// `ẋ_rms / F_rms` of the last solve: a damping difference as a relative force.
-    b_scale: f64,
     /// This episode checks the object against a confirmed set rather than publishing.
     check: Option<Check>,
     /// The check has decided (the same object, or a new one declared).
@@ -172,16 +161,12 @@ impl FirstFit {
         };
     }
 
-    /// How far `fitted` is from `other`: `k` relative to the fit's, `b` as a force relative to
-    /// the RMS force (with the last solve's scales), the larger.
-    fn change(&self, fitted: KelvinVoigt, other: KelvinVoigt) -> f64 {
-        let dk = (fitted.k_n_per_m - other.k_n_per_m).abs() / fitted.k_n_per_m;
-        dk.max(self.damping_change(fitted, other))
-    }
-
-    /// The difference of two dampings as a force relative to the RMS force.
-    fn damping_change(&self, a: KelvinVoigt, b: KelvinVoigt) -> f64 {
-        (a.b_ns_per_m - b.b_ns_per_m).abs() * self.b_scale
+    /// Whether `a` and `b` differ by more than `limit`: the stiffnesses by a factor beyond
+    /// `1 + limit` either way, or the dampings, as a force, by more than `limit` of the RMS force.
+    fn differs(&self, a: KelvinVoigt, b: KelvinVoigt, limit: f64) -> bool {
+        let dk = (a.k_n_per_m / b.k_n_per_m).ln().abs();
+        let db = (a.b_ns_per_m - b.b_ns_per_m).abs() * self.sums.damping_scale();
+        dk > limit.ln_1p() || db > limit
     }
 
     /// Adds one axis's sample (position [m], velocity [m/s], tared force on the tool [N]). The
@@ -215,9 +200,8 @@ impl FirstFit {
     ) -> Result<Gated, Withheld> {
         let solve = self.least_squares().ok_or(Withheld::NotExcited)?;
         let previous = self.previous.replace(solve.kv);
-        self.b_scale = solve.velocity_rms / solve.force_rms_n;
         let gated = self.gate(&solve, config, gates).map_err(Withheld::Gate)?;
-        let moved = |from: KelvinVoigt| self.change(solve.kv, from) > config.max_change;
+        let moved = |from: KelvinVoigt| self.differs(solve.kv, from, config.max_change);
         let publish = match (self.published, previous) {
             (None, Some(p)) => !moved(p),
             (None, None) => false,
@@ -301,7 +285,6 @@ impl FirstFit {
             residual: (ssr / s.ff).sqrt(),
             term_error: [term(terms[0], x_rms), term(terms[1], v_rms)],
             force_rms_n: f_rms,
-            velocity_rms: v_rms,
         };
         (k.is_finite() && b.is_finite()).then_some(solve)
     }
@@ -363,11 +346,10 @@ impl super::Estimator {
         let (Some(fit), Some(old)) = (fitted.kelvin_voigt(), confirmed) else {
             return;
         };
-        // Symmetric in the two stiffnesses: 30 % stiffer or softer alike.
-        let dk = (fit.k_n_per_m / old.k_n_per_m).ln().abs();
-        let db = self.first.damping_change(fit, old);
-        let limit = self.config.first_fit.new_object_change;
-        if dk <= (1.0 + limit).ln() && db <= limit {
+        if !self
+            .first
+            .differs(fit, old, self.config.first_fit.new_object_change)
+        {
             return;
         }
         if check == Check::Object {

@@ -47,15 +47,18 @@ pub fn gate_prior(
     Ok(GatedPrior { normal, tangential })
 }
 
-/// Gives each tangential prior renderer its gated model.
-pub(super) fn prior_targets(axes: &mut [Tangential; 2], gated: &Gated) {
+/// Gives each tangential renderer (the prior's or the model's) `gated` as its target; whether
+/// any took it (a renderer refuses a set of another structure).
+pub(super) fn set_tangential_targets(axes: &mut [Tangential; 2], gated: &Gated) -> bool {
+    let mut any = false;
     for axis in axes {
-        match axis {
+        any |= match axis {
             Tangential::Sliding(r) => r.set_target(gated),
             Tangential::Shear(r) => r.set_target(gated),
             Tangential::Free => false,
         };
     }
+    any
 }
 
 /// The tangents' prior (issue 13): rendered until the first model, then handed over.
