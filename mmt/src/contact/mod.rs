@@ -12,6 +12,8 @@
 //! - [`distance`]: eq. 24–29, the analytic shortest-distance roots (eq. 29 corrected).
 //! - [`CloudIndex`] / [`BruteForce`]: radius queries behind one [`Neighbours`] trait, so the
 //!   benchmark's brute-force proxy is the same code on a different backend.
+//! - [`Moved`]: a cloud seen moved by a translation (the operator's cloud of a sliding object,
+//!   moved by its locally predicted slide), with no new index.
 //! - [`bridge`]: where the points are a plane with holes in it, the fitted plane is the surface
 //!   (a depth camera's dropout, hole patches and noise do not let the proxy through).
 //! - [`budget`]: whether a cloud can run at the loop rate (points in the query ball, frame
@@ -25,12 +27,14 @@ pub mod budget;
 mod config;
 mod density;
 pub mod distance;
+mod moved;
 mod neighbours;
 mod proxy;
 mod surface;
 
 pub use config::{ProxyConfig, ProxyError};
-pub use neighbours::{BruteForce, CloudIndex, IndexError, Neighbour, Neighbours};
+pub use moved::Moved;
+pub use neighbours::{BruteForce, CloudIndex, IndexError, Neighbour, Neighbours, next_cloud_id};
 pub use proxy::Proxy;
 pub use surface::{NormalEstimator, SurfaceFrame, wendland};
 

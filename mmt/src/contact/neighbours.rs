@@ -92,7 +92,9 @@ pub struct CloudIndex {
 /// this shared counter cannot make two runs differ.
 static NEXT_CLOUD_ID: AtomicU64 = AtomicU64::new(1);
 
-fn next_cloud_id() -> u64 {
+/// A fresh [`Neighbours::cloud_id`], unique among every cloud index and view of this process
+/// (e.g. a [`super::Moved`] view's, each time its offset changes).
+pub fn next_cloud_id() -> u64 {
     NEXT_CLOUD_ID.fetch_add(1, Ordering::Relaxed)
 }
 
