@@ -51,6 +51,10 @@ pub struct TelerobotSettings {
     /// telerobot itself does not use it.
     #[serde(default)]
     pub prior: Option<Prior>,
+    /// The cloud is the object's surface and slides with it (for the operator, which moves it by
+    /// its predicted slide; the `Welcome` carries it).
+    #[serde(default)]
+    pub cloud_follows_object: bool,
 }
 
 /// A plane through `point_m` with outward unit `normal`, world frame.
@@ -83,6 +87,7 @@ impl TelerobotSettings {
                 ..RendererConfig::default()
             },
             prior: self.prior,
+            cloud_follows_object: self.cloud_follows_object,
         }
     }
 }
@@ -106,6 +111,10 @@ pub struct OperatorSettings {
     /// ([`crate::operator::OperatorConfig::prefer_scene_prior`]).
     #[serde(default)]
     pub prior: Option<Prior>,
+    /// The telerobot's cloud is the object's surface, slid with it: the operator moves each frame
+    /// by the slide its own model predicts since the frame's capture (issue 13 item 6).
+    #[serde(default)]
+    pub cloud_follows_object: bool,
 }
 
 /// A `Welcome` the operator cannot run with.
@@ -159,6 +168,7 @@ impl OperatorSettings {
                 ..RendererConfig::default()
             },
             prior,
+            cloud_follows_object: summary.cloud_follows_object,
         })
     }
 }
@@ -181,6 +191,7 @@ mod tests {
             left_out: vec![],
             proxy_radii_m: radii,
             prior: None,
+            cloud_follows_object: true,
         }
     }
 

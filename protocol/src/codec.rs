@@ -27,7 +27,7 @@ use serde::de::DeserializeOwned;
 use crate::finite::{CheckFinite, NonFinite};
 
 /// The protocol version this build speaks; the first two bytes (little-endian) of every message.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Length of the version prefix \[bytes\].
 pub const VERSION_PREFIX_BYTES: usize = 2;

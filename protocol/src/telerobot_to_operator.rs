@@ -75,6 +75,11 @@ pub struct SceneSummary {
     pub proxy_radii_m: [f64; 3],
     /// The scene's prior of its object, when it declares one (protocol 4).
     pub prior: Option<ScenePrior>,
+    /// The cloud is the object's own surface and moves with it as it slides (a simulated or file
+    /// cloud with `moving = true`; protocol 5). The operator then moves each frame by the slide
+    /// its local model predicts since the frame was captured (issue 13 item 6). `false` for a
+    /// cloud that holds anything else (a camera's whole view: the table does not slide).
+    pub cloud_follows_object: bool,
 }
 
 /// A scene's prior of its object (issue 13: an informed guess, e.g. from vision): what the

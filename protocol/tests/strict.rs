@@ -154,6 +154,7 @@ fn nan_is_rejected_in_every_float_field() {
             left_out: vec![],
             proxy_radii_m: [f64::MAX; 3],
             prior: None,
+            cloud_follows_object: false,
         },
     });
     assert_eq!(

@@ -87,6 +87,7 @@ pub fn wall_summary() -> SceneSummary {
         left_out: vec![],
         proxy_radii_m: [0.004, 0.006, 0.03],
         prior: None,
+        cloud_follows_object: false,
     }
 }
 

@@ -72,6 +72,7 @@ pub fn telerobot_samples() -> Vec<t2o::Message> {
                 cloud_rate_hz: Some(30.0),
                 left_out: vec!["k1".into()],
                 proxy_radii_m: [0.5, 1.0, 2.0],
+                cloud_follows_object: true,
                 prior: Some(ScenePrior {
                     normal_k_n_per_m: 2.0,
                     normal_b_ns_per_m: 0.5,
@@ -345,6 +346,7 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
         proptest::collection::vec(".{0,10}", 0..4),
         [finite(), finite(), finite()],
         proptest::option::of(proptest::array::uniform8(finite())),
+        any::<bool>(),
     )
         .prop_map(
             |(
@@ -356,6 +358,7 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
                 left_out,
                 proxy_radii_m,
                 prior,
+                cloud_follows_object,
             )| {
                 SceneSummary {
                     name,
@@ -365,6 +368,7 @@ fn arb_handshake() -> impl Strategy<Value = t2o::Message> {
                     cloud_rate_hz,
                     left_out,
                     proxy_radii_m,
+                    cloud_follows_object,
                     prior: prior.map(|[a, b, c, d, e, f, g, h]| ScenePrior {
                         normal_k_n_per_m: a,
                         normal_b_ns_per_m: b,

@@ -78,7 +78,15 @@ impl Scene {
             }),
             limits: self.motion_limits(),
             prior: self.object_prior(),
+            cloud_follows_object: self.cloud_follows_object(),
         }
+    }
+
+    /// Whether the scene's cloud is the object's surface, slid with it: a simulated or file cloud
+    /// with `moving = true`. A ROS 2 camera's cloud holds the whole view (the table too), so the
+    /// operator does not move it.
+    pub fn cloud_follows_object(&self) -> bool {
+        self.cloud.moving && matches!(self.cloud.source, CloudKind::Plane | CloudKind::File)
     }
 
     /// The scene's `[prior]`, weighed against the generic class
@@ -116,6 +124,7 @@ impl Scene {
             left_out: self.left_out(),
             proxy_radii_m: [self.proxy.r1_m, self.proxy.r2_m, self.proxy.r3_m],
             prior: self.object_prior().as_ref().map(prior_to_wire),
+            cloud_follows_object: self.cloud_follows_object(),
         }
     }
 }
