@@ -19,18 +19,23 @@
 //!   (`RendererConfig::handover_s`): the normal's parameters are blended, and on the tangents
 //!   the offset between the prior's force and the model's at the first model tick falls to 0
 //!   (the model's renderers run beside the prior's from the episode's onset, replayed at model
-//!   start, so their mass state is the model's own).
+//!   start, so their mass state is the model's own);
+//! - **the cloud moved by the predicted slide** (issue 13 item 6): when the cloud is the sliding
+//!   object's surface, the proxy runs on the newest frame moved by the slide the node's own model
+//!   predicts since the frame's capture ([`slide`]).
 
 mod prior;
+mod slide;
 mod stats;
 pub use prior::{GatedPrior, gate_prior};
 pub use stats::OperatorStats;
 
 use prior::{PriorStage, set_tangential_targets};
+use slide::Slide;
 
 use std::sync::Arc;
 
-use mmt::contact::{CloudIndex, ContactOutput, ContactState, Proxy};
+use mmt::contact::{CloudIndex, ContactOutput, ContactState, Moved, Proxy};
 use mmt::model::Structure;
 use mmt::model::prior::{Choice, Prior};
 use mmt::render::{KelvinVoigtRenderer, RendererStats, ShearRenderer, SlidingMassRenderer};
@@ -66,6 +71,9 @@ pub struct OperatorConfig {
     /// Render the scene's prior instead of [`OperatorConfig::prior`] when the scene declares
     /// one (`OperatorSettings::prior`, from the `Welcome`). Default: true (`--prior scene`).
     pub prefer_scene_prior: bool,
+    /// Move a cloud that follows the object (`OperatorSettings::cloud_follows_object`) by the
+    /// slide the rendered model predicts since the frame's capture. Default: true.
+    pub move_cloud_with_slide: bool,
 }
 
 impl OperatorConfig {
@@ -97,6 +105,7 @@ impl Default for OperatorConfig {
             replay_on_model_start: true,
             prior: Some(Prior::generic()),
             prefer_scene_prior: true,
+            move_cloud_with_slide: true,
         }
     }
 }
@@ -151,6 +160,8 @@ pub struct OperatorNode {
     rendering: bool,
     remote_in_contact: bool,
     last_sync_ns: Option<i64>,
+    /// The object's predicted slide, and the newest frame's view moved by it.
+    slide: Slide,
     stats: OperatorStats,
 }
 
@@ -214,6 +225,7 @@ impl OperatorNode {
             rendering: false,
             remote_in_contact: false,
             last_sync_ns: None,
+            slide: Slide::new(settings.period_ns as f64 * 1e-9),
             stats: OperatorStats::default(),
             config,
             settings,
@@ -418,9 +430,11 @@ impl OperatorNode {
             for (axis, f) in tangents.iter().zip(f_tangential) {
                 force = vec3::add(force, vec3::scale(*axis, f));
             }
+            self.slide.advance(now_ns, self.object_velocity(&tangents));
             self.history
                 .push(now_ns, in_contact, inputs, &self.tangential);
         } else {
+            self.slide.advance(now_ns, [0.0; 3]);
             self.history
                 .push(now_ns, false, [[0.0; 2]; 2], &self.tangential);
         }
@@ -444,7 +458,21 @@ impl OperatorNode {
         if self.config.local_contact
             && let Some(cloud) = &self.cloud
         {
-            let out = self.proxy.step(position_m, cloud.as_ref());
+            let view = self.frame_command_ns(cloud).and_then(|command_ns| {
+                self.slide.view(
+                    mmt::contact::Neighbours::cloud_id(cloud.as_ref()),
+                    command_ns,
+                )
+            });
+            let out = match view {
+                Some((by, id)) => self
+                    .proxy
+                    .step(position_m, &Moved::new(cloud.as_ref(), by, id)),
+                None => self.proxy.step(position_m, cloud.as_ref()),
+            };
+            if let (true, Some(n)) = (out.state.is_touching(), out.normal) {
+                self.slide.observe_normal(n);
+            }
             return self.tracker.update(&out, position_m);
         }
         // Remote contact (the thesis): the telerobot's state as it arrives, its frame and surface.
@@ -502,7 +530,12 @@ impl OperatorNode {
 
     /// Counters.
     pub fn stats(&self) -> OperatorStats {
-        self.stats
+        OperatorStats {
+            moved_clouds: self.slide.moved_views,
+            largest_cloud_move_m: self.slide.largest_move_m,
+            cloud_moves_beyond_history: self.slide.beyond_ring,
+            ..self.stats
+        }
     }
 
     /// Where the local proxy is \[m\], while it runs (local contact on, a cloud received).

@@ -50,6 +50,11 @@ pub struct ExperimentArgs {
     /// fast first model): each group waits for its RLS set.
     #[arg(long)]
     no_first_fit: bool,
+    /// Leave the operator's cloud where each frame shows the object (the baseline of issue 13
+    /// item 6), instead of moving it by the slide the operator's model predicts since the frame
+    /// was captured.
+    #[arg(long)]
+    no_cloud_slide: bool,
     /// What the operator renders before the first model: scene (the default: the scene's
     /// [prior] when it declares one, else generic), generic (the centre of the soft-object
     /// class), none (free space), truth (the scene's true object: the floor a perfect prior
@@ -242,6 +247,7 @@ fn config(args: &ExperimentArgs) -> Result<ExperimentConfig> {
     config.operator.state_sync = !args.no_sync;
     config.thesis_proxy = args.thesis_proxy;
     config.first_fit = !args.no_first_fit;
+    config.operator.move_cloud_with_slide = !args.no_cloud_slide;
     config.operator = config
         .operator
         .with_prior(prior(&args.prior, &config.scene)?);

@@ -30,4 +30,15 @@ pub struct OperatorStats {
     pub contact_onsets: u64,
     /// Ticks with a non-finite device reading (force 0).
     pub rejected_inputs: u64,
+    /// Views of a received cloud moved by the object's predicted slide (a new one each time the
+    /// move changes by 0.1 mm).
+    #[serde(default)]
+    pub moved_clouds: u64,
+    /// The largest of those moves \[m\].
+    #[serde(default)]
+    pub largest_cloud_move_m: f64,
+    /// Moves of a frame captured before the slide's history (16 s): the whole history's slide
+    /// was used.
+    #[serde(default)]
+    pub cloud_moves_beyond_history: u64,
 }
