@@ -22,7 +22,7 @@
 //!   start, so their mass state is the model's own);
 //! - **the cloud moved by the predicted slide** (issue 13 item 6): when the cloud is the sliding
 //!   object's surface, the proxy runs on the newest frame moved by the slide the node's own model
-//!   predicts since the frame's capture ([`slide`]).
+//!   predicts since the frame's capture (`operator/slide.rs`).
 
 mod prior;
 mod slide;
