@@ -3,7 +3,8 @@
 //! And the whole [`Estimator::step`] as the telerobot calls it: finite check, tare, filters, RLS,
 //! and every 10 ms the back-solve, gates and confidence gate (amortised over the ticks), plus the
 //! same with a back-solve on every tick (the cost of a tick that back-solves). And the whole
-//! set's informed back-solve beside the massless one (the reduced first model).
+//! set's informed back-solve beside the massless one (the reduced first model), and a tick of
+//! the first contact while the sliding first fit iterates.
 //!
 //! Inputs are a recorded 10 s of the simulated exp-1 scene with Franka-like noise, replayed
 //! cyclically so every iteration sees a fresh, realistic sample.
@@ -197,5 +198,38 @@ fn back_solves(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, estimator, estimator_step, back_solves);
+/// A tick of the first contact while the sliding first fit iterates (`mmt::estimator::
+/// SlideFitConfig`): one Levenberg–Marquardt iteration over the full 0.4 s window, six
+/// simulations of it plus the normal equations. Each tick is measured on a copy of the estimator
+/// taken just after the full window's solve started (the copy is made outside the timing).
+fn slide_fit_tick(c: &mut Criterion) {
+    let (free, contact) = estimate_samples();
+    let mut est = full_estimator(0.01);
+    let mut n = 0u64;
+    let samples = free.iter().map(|s| (s, false));
+    // 0.401 s of contact: the window is full and its solve has started.
+    for (s, in_contact) in samples.chain(contact[..401].iter().map(|s| (s, true))) {
+        est.step(n as f64 * 1e-3, &sample(s), in_contact);
+        n += 1;
+    }
+    let next = contact[401];
+    c.bench_function(
+        "Estimator::step (exp-1, first contact, sliding fit iterating over 0.4 s)",
+        |b| {
+            b.iter_batched(
+                || est.clone(),
+                |mut e| black_box(e.step(n as f64 * 1e-3, black_box(&sample(&next)), true)),
+                criterion::BatchSize::SmallInput,
+            )
+        },
+    );
+}
+
+criterion_group!(
+    benches,
+    estimator,
+    estimator_step,
+    back_solves,
+    slide_fit_tick
+);
 criterion_main!(benches);

@@ -46,8 +46,9 @@ pub struct ExperimentArgs {
     /// that bridges holes in the cloud: the baseline of the camera figures.
     #[arg(long)]
     thesis_proxy: bool,
-    /// Leave out the telerobot's first fit of a Kelvin–Voigt group (the baseline of issue 13's
-    /// fast first model): each group waits for its RLS set.
+    /// Leave out the telerobot's first fits, of a Kelvin–Voigt group and of a sliding object's
+    /// first contact (the baseline of issue 13's fast first model): each group waits for its
+    /// RLS set.
     #[arg(long)]
     no_first_fit: bool,
     /// Leave the operator's cloud where each frame shows the object (the baseline of issue 13

@@ -109,8 +109,9 @@ pub struct ExperimentConfig {
     /// bridges a camera's holes (`mmt::contact::bridge`): the baseline of issue 14's figures.
     #[serde(default)]
     pub thesis_proxy: bool,
-    /// The telerobot publishes a Kelvin–Voigt group's first fit before its RLS set
-    /// (`mmt::estimator::FirstFitConfig`, issue 13 item 2). Default true; false is the baseline.
+    /// The telerobot publishes its first fits before the RLS sets: a Kelvin–Voigt group's
+    /// (`mmt::estimator::FirstFitConfig`) and a sliding object's first contact's
+    /// (`mmt::estimator::SlideFitConfig`), issue 13 item 2. Default true; false is the baseline.
     #[serde(default = "yes")]
     pub first_fit: bool,
 }

@@ -165,6 +165,8 @@ impl Harness {
         }
         settings.normal.first_fit.enabled &= config.first_fit;
         settings.tangential.first_fit.enabled &= config.first_fit;
+        settings.normal.slide_fit.enabled &= config.first_fit;
+        settings.tangential.slide_fit.enabled &= config.first_fit;
         let trajectory = by_name_seeded(
             &config.trajectory,
             config.seconds,

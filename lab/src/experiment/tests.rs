@@ -487,7 +487,9 @@ fn a_kelvin_voigt_contact_renders_its_first_fit_within_a_tenth_of_a_second() {
         e.stats.first_fit_after_s
     };
     assert!(first("normal").is_some_and(|s| s <= 0.1), "{exp1:?}");
-    assert_eq!(first("tangential"), None);
+    // Its tangents are a sliding object: their first fit is the simulated one's
+    // (`estimator::slide_fit`), within the first contact.
+    assert!(first("tangential").is_some_and(|s| s <= 0.44), "{exp1:?}");
     let table = metrics::table(&exp1);
     assert!(table.contains("first fit after contact"), "{table}");
 }
@@ -521,4 +523,47 @@ fn the_cloud_moved_by_the_predicted_slide_holds_exp3_at_two_seconds() {
     assert_eq!(without.operator_stats.moved_clouds, 0);
     let l = with.contact_switch_latency_ms;
     assert_eq!((l.switches, l.local_missed), (5, 0), "{l:?}");
+}
+
+/// Issue 13 item 2 for a sliding object: the telerobot fits the whole sliding-mass model to its
+/// first contact by simulation (`mmt::estimator::SlideFitConfig`), so its tangents render a
+/// model within a few tenths of a second of first contact instead of the prior for about a
+/// second; on exp 1's object and on a heavier, softer one with realistic friction (1.2 N of
+/// Coulomb friction on 3 kg) that no default was tuned on.
+#[test]
+fn a_sliding_objects_first_contact_renders_its_fit_within_a_few_tenths_of_a_second() {
+    let mut heavy = Scene::exp1();
+    let e = &mut heavy.environment;
+    (e.mass_kg, e.k_contact_n_per_m, e.b_contact_ns_per_m) = (3.0, 300.0, 25.0);
+    (
+        e.b_ground_ns_per_m,
+        e.static_friction_n,
+        e.coulomb_friction_n,
+    ) = (20.0, 1.7, 1.2);
+    for scene in [Scene::exp1(), heavy] {
+        let exp1 = |first: bool| {
+            let mut config = ExperimentConfig::new(Kind::Exp1, scene.clone());
+            config.seconds = 10.0;
+            config.first_fit = first;
+            run(&config, &mut |_| {}).unwrap().1
+        };
+        let (with, without) = (exp1(true), exp1(false));
+        let tangential = with.estimators.iter().find(|e| e.axes == "tangential");
+        let after = tangential.and_then(|e| e.stats.first_fit_after_s);
+        assert!(after.is_some_and(|s| s <= 0.3), "{}: {after:?}", scene.name);
+        let prior_s = |r: &ExperimentReport| r.stage_errors.seconds[0];
+        assert!(
+            prior_s(&with) <= 0.3 && prior_s(&without) > 0.9,
+            "{}: the prior rendered {} s, {} s without",
+            scene.name,
+            prior_s(&with),
+            prior_s(&without)
+        );
+        let (e_with, e_without) = (with.rms_error_pct.unwrap(), without.rms_error_pct.unwrap());
+        assert!(
+            e_with < 0.85 * e_without,
+            "{}: from first contact {e_with:.2} % against {e_without:.2} % without",
+            scene.name
+        );
+    }
 }

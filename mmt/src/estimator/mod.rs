@@ -30,6 +30,7 @@ mod confidence;
 mod first;
 mod friction;
 mod gaps;
+mod slide_fit;
 mod solve;
 mod stats;
 mod validate;
@@ -39,6 +40,7 @@ pub use confidence::ConfidenceConfig;
 pub use first::FirstFitConfig;
 pub use friction::{FrictionObserver, ObservedObject};
 pub use gaps::{GAP_MUTE_M, MAX_FILLED_PERIODS, MOTION_TOLERANCE_M, SETTLE_CUTOFF_PERIODS};
+pub use slide_fit::SlideFitConfig;
 pub use stats::{EstimatorStats, RejectionCounts};
 
 use crate::filter::{FilterError, Regression, RegressorConfig, RegressorFilter};
@@ -149,6 +151,10 @@ pub struct EstimatorConfig {
     /// A Kelvin–Voigt group's fast first fit, published before its RLS set ([`FirstFitConfig`]).
     #[serde(default)]
     pub first_fit: FirstFitConfig,
+    /// A sliding group's fast first fit of its model's first contact, published before its RLS
+    /// set ([`SlideFitConfig`]).
+    #[serde(default)]
+    pub slide_fit: SlideFitConfig,
 }
 
 impl EstimatorConfig {
@@ -177,6 +183,7 @@ impl EstimatorConfig {
             reduced_model: true,
             select_structure: false,
             first_fit: FirstFitConfig::default(),
+            slide_fit: SlideFitConfig::default(),
         }
     }
 }
@@ -287,6 +294,9 @@ pub struct Estimator {
     settled: bool,
     stats: EstimatorStats,
     first: first::FirstFit,
+    slide: slide_fit::SlideFit,
+    /// Contacts of this model so far (the sliding first fit serves only the first).
+    model_episodes: u32,
 }
 
 impl Estimator {
@@ -339,6 +349,8 @@ impl Estimator {
             settled: false,
             stats: EstimatorStats::default(),
             first: first::FirstFit::default(),
+            slide: slide_fit::SlideFit::new(&config.slide_fit, config.axes, dt),
+            model_episodes: 0,
             config,
         })
     }
@@ -402,6 +414,9 @@ impl Estimator {
             let check = self.latest.is_some().then_some(first::Check::AfterReset);
             self.start_new_model();
             self.first.restart(now_s, check);
+            // The object may be moving now: the model's next contact is not one from rest.
+            self.slide.stop();
+            self.model_episodes = 1;
             self.stats.new_objects += 1;
             update.new_object = true;
         }
@@ -410,6 +425,7 @@ impl Estimator {
             self.back_solve(&mut update);
         }
         self.fit_first(now_s, &samples[..n], &mut update);
+        self.fit_slide(now_s, &samples[..n], missed, &mut update);
         update
     }
 
@@ -431,6 +447,9 @@ impl Estimator {
             }
             let check = self.confirmed_this_model.then_some(first::Check::Object);
             self.first.restart(now_s, check);
+            let (serves, friction) = self.slide_fit_serves();
+            self.slide.restart(now_s, serves, friction);
+            self.model_episodes = self.model_episodes.saturating_add(1);
             self.restart_intercepts();
         }
         if self.phase == Phase::Guard && now_s - self.contact_since_s >= self.config.onset_guard_s {
@@ -460,6 +479,7 @@ impl Estimator {
     fn start_new_model(&mut self) {
         // `reset` only fails for an invalid p0, which `new` already validated.
         let _ = self.rls.reset(self.config.initial_covariance);
+        self.model_episodes = 0;
 
         self.confidence.clear();
         self.reduced_confidence.clear();

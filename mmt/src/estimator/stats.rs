@@ -56,15 +56,16 @@ pub struct EstimatorStats {
     /// follows ([`super::GAP_MUTE_M`]): the new-object detector was muted, learning went on.
     #[serde(default)]
     pub gap_mutes: u64,
-    /// First fits of a Kelvin–Voigt group published before its RLS set
-    /// ([`super::FirstFitConfig`]); not in `confirmed`.
+    /// First fits published before the group's RLS set: a Kelvin–Voigt group's
+    /// ([`super::FirstFitConfig`]) or a sliding object's first contact's
+    /// ([`super::SlideFitConfig`]); not in `confirmed`.
     #[serde(default)]
     pub first_fits: u64,
     /// New objects declared by a re-contact's first fit ([`super::FirstFitConfig::
     /// new_object_change`]); also in `new_objects`.
     #[serde(default)]
     pub first_fit_new_objects: u64,
-    /// First-fit solves a gate rejected.
+    /// First-fit solves (of either kind) a gate rejected.
     #[serde(default)]
     pub first_fit_rejections: u64,
     /// Contact time [s] from the onset to the run's first published first fit.

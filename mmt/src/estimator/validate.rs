@@ -55,7 +55,8 @@ impl EstimatorConfig {
         let t = self.tare_time_constant_s;
         field("tare_time_constant_s", t, t.is_finite() && t > 0.0, "> 0 s")?;
         self.confidence.validate()?;
-        self.first_fit.validate()
+        self.first_fit.validate()?;
+        self.slide_fit.validate()
     }
 }
 

@@ -411,7 +411,18 @@ pub fn gate_fit(
     kv: KelvinVoigt,
     residual: f64,
 ) -> Result<Gated, GateRejection> {
-    let mut gated = gate_physical(structure, &Params::KelvinVoigt(kv))?;
+    gate_fitted(structure, &Params::KelvinVoigt(kv), residual)
+}
+
+/// Gates any set fitted directly in physical terms (a first fit: a Kelvin–Voigt contact's, or a
+/// sliding object's by simulation): [`gate_physical`]'s gates, with the fit's relative residual
+/// kept for the report.
+pub fn gate_fitted(
+    structure: Structure,
+    params: &Params,
+    residual: f64,
+) -> Result<Gated, GateRejection> {
+    let mut gated = gate_physical(structure, params)?;
     gated.solved.residual = residual;
     Ok(gated)
 }

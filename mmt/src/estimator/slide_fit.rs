@@ -1,0 +1,574 @@
+//! The first fit of a sliding object's tangents (issue 13 item 2): an output-error fit of the
+//! whole sliding-mass model on the raw samples of the model's first contact, published within
+//! a few tenths of a second of it, long before the RLS's set (about 1 s on exp 1).
+//!
+//! A sliding object is not a law that holds sample by sample (its mass and friction carry a
+//! state), and the RLS needs filtered derivatives whose onset transient it must wait out. But at
+//! the first contact of a model the object's state is known: it is at rest, and the contact
+//! element is unloaded (the rest length puts the force at 0, as the renderer's anchor and the
+//! simulator's do). So the model can be simulated from the onset along the measured tool motion
+//! and its parameters fitted to the measured force directly (Levenberg–Marquardt in the logs of
+//! `m, b1, k2, b2` and `Fc`, forward-difference Jacobian, backward Euler, Coulomb friction with
+//! sticking). The simulation is the renderer's model, so what fits is what is rendered.
+//!
+//! It runs one Levenberg–Marquardt iteration per tick (each simulates the window once per
+//! parameter plus twice: about 30–60 µs for 0.4 s of two axes), on a window frozen when the solve
+//! starts; a solve starts every [`SlideFitConfig::period_s`] from [`SlideFitConfig::min_window_s`]
+//! into the contact until the window reaches [`SlideFitConfig::max_window_s`] or the contact ends.
+//! A converged set is published when it explains the force ([`SlideFitConfig::max_residual`]),
+//! each parameter is pinned down by the data ([`SlideFitConfig::max_relative_error`], from the
+//! Jacobian's covariance) and it passes the physical and deflection gates; afterwards again when
+//! it has moved. It stops once the RLS confirms a set of the model.
+//!
+//! Left out: a structure with a ground spring (its rest position is not known at the onset),
+//! and every later contact (the object may still be sliding when it begins).
+
+use nalgebra::{SMatrix, SVector};
+use serde::{Deserialize, Serialize};
+
+use super::EstimatorError;
+use crate::model::backsolve::Params;
+use crate::model::gates::{GateConfig, GateRejection, Gated, check_deflection, gate_fitted};
+use crate::model::{Physical, Structure};
+
+/// Parameters fitted: `ln m, ln b1, ln k2, ln b2, ln Fc` (the last only with friction).
+const P: usize = 5;
+type Vector = SVector<f64, P>;
+type Matrix = SMatrix<f64, P, P>;
+
+/// Settings of the sliding first fit.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SlideFitConfig {
+    /// Whether a sliding group publishes a first fit before its RLS set. Default true.
+    pub enabled: bool,
+    /// Contact time before the first solve \[s\]. Default 0.1.
+    pub min_window_s: f64,
+    /// Longest window fitted \[s\]: the memory held and the cost of an iteration. Default 0.4.
+    pub max_window_s: f64,
+    /// Time between solve starts \[s\]. Default 0.05.
+    pub period_s: f64,
+    /// Largest RMS misfit of the force, relative to its RMS. Default 0.15.
+    pub max_residual: f64,
+    /// Largest relative standard error of `m, b1, k2, b2`, and of `Fc` as a force relative to
+    /// the RMS force. Default 0.3.
+    pub max_relative_error: f64,
+    /// A published set is published again once a parameter has moved by a factor of `1 +`
+    /// this either way. Default 0.1.
+    pub republish_change: f64,
+}
+
+impl Default for SlideFitConfig {
+    fn default() -> Self {
+        SlideFitConfig {
+            enabled: true,
+            min_window_s: 0.1,
+            max_window_s: 0.4,
+            period_s: 0.05,
+            max_residual: 0.15,
+            max_relative_error: 0.3,
+            republish_change: 0.1,
+        }
+    }
+}
+
+impl SlideFitConfig {
+    pub(super) fn validate(&self) -> Result<(), EstimatorError> {
+        super::validate::positive(&[
+            ("slide_fit.min_window_s", self.min_window_s),
+            ("slide_fit.max_window_s", self.max_window_s),
+            ("slide_fit.period_s", self.period_s),
+            ("slide_fit.max_residual", self.max_residual),
+            ("slide_fit.max_relative_error", self.max_relative_error),
+            ("slide_fit.republish_change", self.republish_change),
+        ])?;
+        if self.max_window_s < self.min_window_s || self.max_window_s > 2.0 {
+            return Err(EstimatorError::Field {
+                field: "slide_fit.max_window_s",
+                value: self.max_window_s,
+                expected: "between slide_fit.min_window_s and 2 s",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One axis's raw sample: tool position \[m\], velocity \[m/s\], tared force on the tool \[N\].
+type Sample = [f64; 3];
+
+/// The model simulated along a window, and its misfit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Model {
+    p: Physical,
+    friction: bool,
+    dt: f64,
+}
+
+impl Model {
+    fn new(theta: &Vector, friction: bool, dt: f64) -> Model {
+        let e = |i: usize| theta[i].exp();
+        Model {
+            p: Physical {
+                mass_kg: e(0),
+                k_ground_n_per_m: 0.0,
+                b_ground_ns_per_m: e(1),
+                k_contact_n_per_m: e(2),
+                b_contact_ns_per_m: e(3),
+                coulomb_n: if friction { e(4) } else { 0.0 },
+            },
+            friction,
+            dt,
+        }
+    }
+
+    /// The force on the tool along one axis's samples, from an object at rest and an unloaded
+    /// contact at the first; each residual (measured − model) goes to `out`.
+    fn residuals(&self, axis: impl Iterator<Item = Sample>, out: &mut impl FnMut(f64)) {
+        let Physical {
+            mass_kg: m,
+            b_ground_ns_per_m: b1,
+            k_contact_n_per_m: k2,
+            b_contact_ns_per_m: b2,
+            coulomb_n: fc,
+            ..
+        } = self.p;
+        let dt = self.dt;
+        let (mut xm, mut vm) = (0.0_f64, 0.0_f64);
+        let mut rest = None;
+        for [x, v, f] in axis {
+            let l = *rest.get_or_insert(x + b2 * v / k2);
+            let drive = k2 * (x - l - xm) + b2 * v;
+            let stuck = vm == 0.0 && drive.abs() <= fc;
+            if !stuck {
+                let dir = if vm != 0.0 {
+                    vm.signum()
+                } else {
+                    drive.signum()
+                };
+                let fr = fc * dir;
+                // Backward Euler of m v̇ = k2 (x − L − xm) + b2 (ẋ − v) − b1 v − Fc sgn v.
+                let next = (m * vm / dt + drive - fr) / (m / dt + b1 + b2 + k2 * dt);
+                vm = if next * dir < 0.0 { 0.0 } else { next };
+                xm += vm * dt;
+            }
+            let model = -(k2 * (x - l - xm) + b2 * (v - vm));
+            out(f - model);
+        }
+    }
+}
+
+/// A Levenberg–Marquardt solve in progress.
+#[derive(Clone, Debug, PartialEq)]
+struct Solve {
+    theta: Vector,
+    cost: f64,
+    lambda: f64,
+    iterations: u32,
+    /// Samples per axis in the window.
+    n: usize,
+}
+
+const MAX_ITERATIONS: u32 = 40;
+const FD_STEP: f64 = 1e-4;
+
+/// The running fit of one group's first contact.
+#[derive(Clone, Debug, Default)]
+pub(super) struct SlideFit {
+    /// The first contact's samples, per axis (`[axis][tick]`); capacity reserved up front.
+    samples: [Vec<Sample>; 2],
+    axes: usize,
+    /// Collecting this contact (the model's first, of a sliding structure without `k1`).
+    active: bool,
+    friction: bool,
+    since_s: f64,
+    next_start_s: f64,
+    solve: Option<Solve>,
+    /// The Jacobian of the solve's last iteration, `[sample][parameter]`.
+    jacobian: Vec<[f64; P]>,
+    residual: Vec<f64>,
+    /// Where the last solve converged (its start for the next).
+    last: Option<Vector>,
+    published: Option<Physical>,
+}
+
+/// What a tick of the fit produced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Outcome {
+    /// Nothing yet.
+    Working,
+    /// A converged set passed every gate.
+    Publish(Gated),
+    /// A converged set failed a gate.
+    Rejected(GateRejection),
+}
+
+impl SlideFit {
+    /// A fit for `axes` axes sampled every `dt` \[s\], its memory reserved for `config`'s window.
+    pub(super) fn new(config: &SlideFitConfig, axes: usize, dt: f64) -> SlideFit {
+        let cap = window_samples(config, dt);
+        SlideFit {
+            samples: [Vec::with_capacity(cap), Vec::with_capacity(cap)],
+            axes: axes.min(2),
+            jacobian: Vec::with_capacity(2 * cap),
+            residual: Vec::with_capacity(2 * cap),
+            ..SlideFit::default()
+        }
+    }
+
+    /// A contact begins at `now_s`. `first`: it is the model's first, the object at rest, and
+    /// the structure one this fit serves (`friction` when it has Coulomb friction).
+    pub(super) fn restart(&mut self, now_s: f64, first: bool, friction: bool) {
+        for s in &mut self.samples {
+            s.clear();
+        }
+        self.active = first;
+        self.friction = friction;
+        self.since_s = now_s;
+        self.next_start_s = now_s;
+        self.solve = None;
+        self.last = None;
+        self.published = None;
+        self.residual.clear();
+        self.jacobian.clear();
+    }
+
+    /// Ends this contact's fit (its end, a gap, a confirmed RLS set, a new object).
+    pub(super) fn stop(&mut self) {
+        self.active = false;
+        self.solve = None;
+    }
+
+    /// One tick in contact at `now_s`: each axis's `[x, ẋ, tared F]` joins the window while it
+    /// is not full; a due solve starts, or the one in progress makes one iteration.
+    pub(super) fn step(
+        &mut self,
+        now_s: f64,
+        axes: &[Sample],
+        config: &SlideFitConfig,
+        gates: &GateConfig,
+        dt: f64,
+    ) -> Outcome {
+        if !self.active || axes.len() < self.axes {
+            return Outcome::Working;
+        }
+        let n = self.samples[0].len();
+        if n < window_samples(config, dt) {
+            for (window, s) in self.samples.iter_mut().zip(axes).take(self.axes) {
+                window.push(*s);
+            }
+        }
+        let Some(solve) = self.solve.take() else {
+            self.start(now_s, config, dt);
+            return Outcome::Working;
+        };
+        match self.iterate(solve, dt) {
+            Ok(solve) => {
+                self.solve = Some(solve);
+                Outcome::Working
+            }
+            Err(done) => self.finish(&done, config, gates, dt),
+        }
+    }
+
+    /// Starts a solve when one is due and the window has grown since the last.
+    fn start(&mut self, now_s: f64, config: &SlideFitConfig, dt: f64) {
+        let n = self.samples[0].len();
+        let due = now_s - self.since_s >= config.min_window_s - 0.5 * dt
+            && now_s >= self.next_start_s
+            && self.last_n() < n;
+        if !due {
+            return;
+        }
+        self.next_start_s = now_s + config.period_s;
+        let theta = self.last.unwrap_or_else(start_point);
+        let cost = self.cost(&theta, n, dt);
+        self.solve = Some(Solve {
+            theta,
+            cost,
+            lambda: 1e-2,
+            iterations: 0,
+            n,
+        });
+    }
+
+    /// Samples per axis the last finished solve used (0 before one).
+    fn last_n(&self) -> usize {
+        self.residual.len() / self.axes.max(1)
+    }
+
+    fn model(&self, theta: &Vector, dt: f64) -> Model {
+        Model::new(theta, self.friction, dt)
+    }
+
+    fn fitted(&self) -> usize {
+        if self.friction { P } else { P - 1 }
+    }
+
+    /// The sum of squared residuals over the first `n` samples of each axis (∞ when not finite).
+    fn cost(&self, theta: &Vector, n: usize, dt: f64) -> f64 {
+        let model = self.model(theta, dt);
+        let mut ssr = 0.0;
+        for window in self.samples.iter().take(self.axes) {
+            model.residuals(window[..n].iter().copied(), &mut |r| ssr += r * r);
+        }
+        if ssr.is_finite() { ssr } else { f64::INFINITY }
+    }
+
+    /// The residuals and the forward-difference Jacobian at `theta` into the buffers.
+    fn linearise(&mut self, theta: &Vector, n: usize, dt: f64) {
+        self.residual.clear();
+        self.jacobian.clear();
+        let model = self.model(theta, dt);
+        for window in self.samples.iter().take(self.axes) {
+            let residual = &mut self.residual;
+            model.residuals(window[..n].iter().copied(), &mut |r| residual.push(r));
+        }
+        self.jacobian.resize(self.residual.len(), [0.0; P]);
+        for j in 0..self.fitted() {
+            let mut moved = *theta;
+            moved[j] += FD_STEP;
+            let model = self.model(&moved, dt);
+            let mut i = 0;
+            for window in self.samples.iter().take(self.axes) {
+                let (jacobian, base) = (&mut self.jacobian, &self.residual);
+                model.residuals(window[..n].iter().copied(), &mut |r| {
+                    jacobian[i][j] = (r - base[i]) / FD_STEP;
+                    i += 1;
+                });
+            }
+        }
+    }
+
+    /// `JᵀJ` and `Jᵀr` of the buffers; the parameters not fitted get an identity row.
+    fn normal_equations(&self) -> (Matrix, Vector) {
+        let (mut a, mut g) = (Matrix::zeros(), Vector::zeros());
+        for (row, r) in self.jacobian.iter().zip(&self.residual) {
+            let row = Vector::from_column_slice(row);
+            a += row * row.transpose();
+            g += row * *r;
+        }
+        for j in self.fitted()..P {
+            a[(j, j)] = 1.0;
+            g[j] = 0.0;
+        }
+        (a, g)
+    }
+
+    /// One Levenberg–Marquardt iteration: `Ok` to go on, `Err` when the solve is done.
+    fn iterate(&mut self, mut s: Solve, dt: f64) -> Result<Solve, Solve> {
+        if !s.cost.is_finite() || s.iterations >= MAX_ITERATIONS || s.lambda > 1e8 {
+            return Err(s);
+        }
+        s.iterations += 1;
+        self.linearise(&s.theta, s.n, dt);
+        let (a, g) = self.normal_equations();
+        let mut damped = a;
+        for j in 0..P {
+            damped[(j, j)] += s.lambda * a[(j, j)].max(1e-12);
+        }
+        let Some(step) = damped.cholesky().map(|c| c.solve(&(-g))) else {
+            s.lambda *= 4.0;
+            return Ok(s);
+        };
+        // At most a factor e² per parameter and iteration: a long step into a region where the
+        // simulation sticks throughout has no gradient to come back by.
+        let theta = s.theta + step.map(|d| d.clamp(-2.0, 2.0));
+        let cost = self.cost(&theta, s.n, dt);
+        if cost < s.cost {
+            let gain = (s.cost - cost) / s.cost;
+            s.theta = theta;
+            s.cost = cost;
+            s.lambda = (s.lambda / 3.0).max(1e-9);
+            if gain < 1e-6 {
+                return Err(s);
+            }
+        } else {
+            s.lambda *= 4.0;
+        }
+        Ok(s)
+    }
+
+    /// Gates a converged solve: the set to publish, nothing (it has not moved since the last
+    /// published), or the gate that failed.
+    fn finish(
+        &mut self,
+        s: &Solve,
+        config: &SlideFitConfig,
+        gates: &GateConfig,
+        dt: f64,
+    ) -> Outcome {
+        self.linearise(&s.theta, s.n, dt);
+        match self.gate(s, config, gates, dt) {
+            Ok((gated, p)) => {
+                self.last = Some(s.theta);
+                let moved = self.published.is_none_or(|old| {
+                    differs(&old, &p, config.republish_change.ln_1p(), self.friction)
+                });
+                if !moved {
+                    return Outcome::Working;
+                }
+                self.published = Some(p);
+                Outcome::Publish(gated)
+            }
+            Err(e) => {
+                self.last = None;
+                Outcome::Rejected(e)
+            }
+        }
+    }
+
+    fn gate(
+        &self,
+        s: &Solve,
+        config: &SlideFitConfig,
+        gates: &GateConfig,
+        dt: f64,
+    ) -> Result<(Gated, Physical), GateRejection> {
+        let ff: f64 = self
+            .samples
+            .iter()
+            .take(self.axes)
+            .flat_map(|w| w[..s.n].iter())
+            .map(|x| x[2] * x[2])
+            .sum();
+        let residual = (s.cost / ff).sqrt();
+        if !(residual <= config.max_residual) {
+            return Err(GateRejection::Residual {
+                residual,
+                max: config.max_residual,
+            });
+        }
+        let count = self.residual.len() as f64;
+        let f_rms = (ff / count).sqrt();
+        let (a, _) = self.normal_equations();
+        let sigma2 = s.cost / (count - self.fitted() as f64).max(1.0);
+        let model = self.model(&s.theta, dt);
+        let spread = |j: usize, cov: &Matrix| {
+            let se = (sigma2 * cov[(j, j)]).max(0.0).sqrt();
+            if j == 4 {
+                se * model.p.coulomb_n / f_rms
+            } else {
+                se
+            }
+        };
+        let cov = a.try_inverse().ok_or(GateRejection::NotIdentified {
+            parameter: "m",
+            spread: f64::INFINITY,
+            max: config.max_relative_error,
+        })?;
+        for (j, name) in ["m", "b1", "k2", "b2", "Fc"]
+            .into_iter()
+            .enumerate()
+            .take(self.fitted())
+        {
+            let spread = spread(j, &cov);
+            if !(spread <= config.max_relative_error) {
+                return Err(GateRejection::NotIdentified {
+                    parameter: name,
+                    spread,
+                    max: config.max_relative_error,
+                });
+            }
+        }
+        let structure = Structure::SlidingMass {
+            ground_spring: false,
+            friction: self.friction,
+        };
+        let gated = gate_fitted(structure, &Params::SlidingMass(model.p), residual)?;
+        Ok((check_deflection(gated, f_rms, gates)?, model.p))
+    }
+}
+
+impl super::Estimator {
+    /// One tick of the sliding first fit, after the RLS's: the samples join the fit while the
+    /// model's first contact lasts and the model has no confirmed set; a set that passes is this
+    /// tick's update (unless the RLS confirmed one this tick).
+    pub(super) fn fit_slide(
+        &mut self,
+        now_s: f64,
+        samples: &[super::AxisSample],
+        missed: u32,
+        update: &mut super::Update,
+    ) {
+        if self.phase == super::Phase::Free || self.confirmed_this_model || missed > 0 {
+            // A gap breaks the simulation's even time steps: the window ends there.
+            self.slide.stop();
+            return;
+        }
+        let mut axes = [[0.0; 3]; 2];
+        for ((a, s), tare) in axes.iter_mut().zip(samples).zip(self.tare) {
+            *a = [s.position_m, s.velocity_m_per_s, s.force_n - tare];
+        }
+        let n = samples.len().min(2);
+        let dt = self.config.filter.svf.sample_period_s;
+        let config = self.config.slide_fit;
+        match self
+            .slide
+            .step(now_s, &axes[..n], &config, &self.config.gates, dt)
+        {
+            Outcome::Publish(g) if update.confirmed.is_none() => {
+                self.stats.first_fits += 1;
+                let after = now_s - self.contact_since_s;
+                self.stats.first_fit_after_s.get_or_insert(after);
+                update.confirmed = Some(g);
+            }
+            Outcome::Rejected(_) => self.stats.first_fit_rejections += 1,
+            Outcome::Publish(_) | Outcome::Working => {}
+        }
+    }
+
+    /// Whether a contact beginning now is one the sliding fit serves: the model's first, of a
+    /// sliding structure without a ground spring; and whether that structure has friction.
+    pub(super) fn slide_fit_serves(&self) -> (bool, bool) {
+        match self.structure {
+            Structure::SlidingMass {
+                ground_spring: false,
+                friction,
+            } => (
+                self.config.slide_fit.enabled && self.model_episodes == 0,
+                friction,
+            ),
+            _ => (false, false),
+        }
+    }
+}
+
+/// Samples per axis in the longest window.
+fn window_samples(config: &SlideFitConfig, dt: f64) -> usize {
+    ((config.max_window_s / dt).round() as usize).clamp(1, 20_000)
+}
+
+/// Where a solve without a previous one starts: the centre of the soft-object class
+/// (`mmt::model::prior::SOFT_OBJECTS`), the same for every scene.
+fn start_point() -> Vector {
+    let c = crate::model::prior::SOFT_OBJECTS.centre();
+    Vector::from([
+        c.mass_kg.ln(),
+        c.b_ground_ns_per_m.ln(),
+        c.k_contact_n_per_m.ln(),
+        c.b_contact_ns_per_m.ln(),
+        c.coulomb_n.max(0.01).ln(),
+    ])
+}
+
+/// Whether any fitted term of `a` and `b` differs by more than `ln_limit` in the log.
+fn differs(a: &Physical, b: &Physical, ln_limit: f64, friction: bool) -> bool {
+    let terms = |p: &Physical| {
+        [
+            p.mass_kg,
+            p.b_ground_ns_per_m,
+            p.k_contact_n_per_m,
+            p.b_contact_ns_per_m,
+            p.coulomb_n,
+        ]
+    };
+    let n = if friction { P } else { P - 1 };
+    terms(a)
+        .iter()
+        .zip(terms(b))
+        .take(n)
+        .any(|(x, y)| (x / y).ln().abs() > ln_limit)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,192 @@
+use super::*;
+
+const DT: f64 = 1e-3;
+
+fn object(m: f64, b1: f64, k2: f64, b2: f64, fc: f64) -> Physical {
+    Physical {
+        mass_kg: m,
+        k_ground_n_per_m: 0.0,
+        b_ground_ns_per_m: b1,
+        k_contact_n_per_m: k2,
+        b_contact_ns_per_m: b2,
+        coulomb_n: fc,
+    }
+}
+
+/// The tool pushing into the object along one axis and dragging it: a ramp of `speed` plus a
+/// 3 Hz and a 7 Hz wobble, and the model's own force for `p` (with `noise_n` of
+/// deterministic pseudo-noise on it).
+fn samples(p: &Physical, speed: f64, phase: f64, noise_n: f64, seconds: f64) -> Vec<Sample> {
+    let n = (seconds / DT).round() as usize;
+    let tau = std::f64::consts::TAU;
+    let tool: Vec<(f64, f64)> = (0..n)
+        .map(|i| {
+            let t = i as f64 * DT;
+            let (w1, w2) = (tau * 3.0, tau * 7.0);
+            let x = speed * t + 0.004 * (w1 * t + phase).sin() + 0.002 * (w2 * t).sin();
+            let v = speed + 0.004 * w1 * (w1 * t + phase).cos() + 0.002 * w2 * (w2 * t).cos();
+            (x, v)
+        })
+        .collect();
+    let theta = Vector::from([
+        p.mass_kg.ln(),
+        p.b_ground_ns_per_m.ln(),
+        p.k_contact_n_per_m.ln(),
+        p.b_contact_ns_per_m.ln(),
+        p.coulomb_n.max(1e-9).ln(),
+    ]);
+    let model = Model::new(&theta, p.coulomb_n > 0.0, DT);
+    let mut forces = Vec::with_capacity(n);
+    // With a measured force of 0 each residual is minus the model's force.
+    model.residuals(tool.iter().map(|&(x, v)| [x, v, 0.0]), &mut |r| {
+        forces.push(-r)
+    });
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    tool.iter()
+        .zip(forces)
+        .map(|(&(x, v), f)| {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            [x, v, f + noise_n * 2.0 * u]
+        })
+        .collect()
+}
+
+/// Runs the fit over two axes' samples, tick by tick; the published sets.
+fn run(axes: [&[Sample]; 2], friction: bool, config: &SlideFitConfig) -> Vec<Gated> {
+    let mut fit = SlideFit::new(config, 2, DT);
+    fit.restart(0.0, true, friction);
+    let gates = GateConfig::default();
+    let mut out = Vec::new();
+    for (i, (a, b)) in axes[0].iter().zip(axes[1]).enumerate() {
+        if let Outcome::Publish(g) = fit.step(i as f64 * DT, &[*a, *b], config, &gates, DT) {
+            out.push(g);
+        }
+    }
+    out
+}
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a / b - 1.0).abs() <= tol
+}
+
+fn assert_recovers(p: &Physical, noise_n: f64, tol: f64) {
+    let (a, b) = (
+        samples(p, 0.03, 0.0, noise_n, 0.5),
+        samples(p, -0.02, 1.0, noise_n, 0.5),
+    );
+    // Every converged solve is published: the last is the whole window's.
+    let config = SlideFitConfig {
+        republish_change: 1e-9,
+        ..SlideFitConfig::default()
+    };
+    let published = run([&a, &b], p.coulomb_n > 0.0, &config);
+    let last = published.last().and_then(Gated::sliding_mass);
+    let Some(q) = last else {
+        panic!("nothing published for {p:?}");
+    };
+    for (name, got, want) in [
+        ("m", q.mass_kg, p.mass_kg),
+        ("b1", q.b_ground_ns_per_m, p.b_ground_ns_per_m),
+        ("k2", q.k_contact_n_per_m, p.k_contact_n_per_m),
+        ("b2", q.b_contact_ns_per_m, p.b_contact_ns_per_m),
+    ] {
+        assert!(close(got, want, tol), "{name}: {got} vs {want} ({q:?})");
+    }
+}
+
+#[test]
+fn the_fit_recovers_an_exact_object_from_its_first_contact() {
+    // The thesis's object, noise-free: the fit is the model's own, so it is exact.
+    assert_recovers(&object(1.0, 60.0, 500.0, 60.0, 0.05), 0.0, 1e-3);
+    // Without friction: four parameters.
+    assert_recovers(&object(1.0, 60.0, 500.0, 60.0, 0.0), 0.0, 1e-3);
+}
+
+#[test]
+fn the_fit_recovers_stiff_light_and_heavy_soft_objects() {
+    // Stiff and light: the mode near 19 Hz.
+    assert_recovers(&object(0.2, 20.0, 3000.0, 10.0, 0.3), 0.0, 1e-3);
+    // Heavy and soft, with a realistic friction.
+    assert_recovers(&object(5.0, 40.0, 200.0, 30.0, 1.0), 0.0, 1e-3);
+}
+
+#[test]
+fn noise_costs_accuracy_within_the_gates() {
+    // 0.05 N of force noise (the Franka-like sensor's order).
+    assert_recovers(&object(1.0, 60.0, 500.0, 60.0, 0.05), 0.05, 0.3);
+}
+
+/// A tool held still: nothing moves, nothing is identified, nothing is published.
+#[test]
+fn a_still_tool_publishes_nothing() {
+    let still: Vec<Sample> = (0..500).map(|_| [0.01, 0.0, -0.2]).collect();
+    assert!(run([&still, &still], true, &SlideFitConfig::default()).is_empty());
+}
+
+/// Garbage forces (a force that no object of the structure makes) fail the residual gate.
+#[test]
+fn a_force_no_object_makes_is_rejected() {
+    let p = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let mut a = samples(&p, 0.03, 0.0, 0.0, 0.5);
+    for (i, s) in a.iter_mut().enumerate() {
+        s[2] = if (i / 37) % 2 == 0 { 3.0 } else { -3.0 };
+    }
+    let b = a.clone();
+    let config = SlideFitConfig::default();
+    let mut fit = SlideFit::new(&config, 2, DT);
+    fit.restart(0.0, true, true);
+    let gates = GateConfig::default();
+    let mut rejected = 0;
+    for i in 0..a.len() {
+        match fit.step(i as f64 * DT, &[a[i], b[i]], &config, &gates, DT) {
+            Outcome::Publish(g) => panic!("published {g:?}"),
+            Outcome::Rejected(_) => rejected += 1,
+            Outcome::Working => {}
+        }
+    }
+    assert!(rejected > 0);
+}
+
+/// A later contact of the model (not `first`) is not fitted, and the window's memory is
+/// reserved once.
+#[test]
+fn only_the_first_contact_is_fitted_in_the_memory_reserved() {
+    let p = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let a = samples(&p, 0.03, 0.0, 0.0, 0.5);
+    let config = SlideFitConfig::default();
+    let mut fit = SlideFit::new(&config, 2, DT);
+    let capacity = fit.samples[0].capacity();
+    fit.restart(0.0, false, true);
+    let gates = GateConfig::default();
+    for (i, s) in a.iter().enumerate() {
+        let out = fit.step(i as f64 * DT, &[*s, *s], &config, &gates, DT);
+        assert_eq!(out, Outcome::Working);
+    }
+    fit.restart(0.0, true, true);
+    for (i, s) in a.iter().enumerate() {
+        fit.step(i as f64 * DT, &[*s, *s], &config, &gates, DT);
+    }
+    assert_eq!(fit.samples[0].len(), 400, "the 0.4 s window");
+    assert_eq!(fit.samples[0].capacity(), capacity);
+}
+
+#[test]
+fn a_bad_configuration_is_refused_naming_the_field() {
+    let bad = SlideFitConfig {
+        max_window_s: 0.05,
+        ..SlideFitConfig::default()
+    };
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("slide_fit.max_window_s = 0.05"), "{e}");
+    let nan = SlideFitConfig {
+        period_s: f64::NAN,
+        ..SlideFitConfig::default()
+    };
+    assert!(
+        nan.validate()
+            .unwrap_err()
+            .to_string()
+            .contains("slide_fit.period_s")
+    );
+}
