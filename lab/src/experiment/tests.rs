@@ -394,8 +394,18 @@ fn a_prior_far_from_the_truth_costs_accuracy_for_a_bounded_time_only() {
                     w.t_s
                 );
             }
-            let after = r.rms_error_pct_after_stable.unwrap();
-            assert!(after <= 5.0, "{kind:?} ×{scale}: after stable {after:.2} %");
+            // The "after stable" window begins at the first whole model: on exp 1's object that
+            // is now the sliding first fit, about 0.25 s into the first contact, so it holds the
+            // prior's hand-over (exp 1, ×0.2: 5.3 % against 3.1 % with no prior; the windows
+            // from a second after the first model on are the same, above).
+            let (after, after_none) = (
+                r.rms_error_pct_after_stable.unwrap(),
+                none.rms_error_pct_after_stable.unwrap(),
+            );
+            assert!(
+                after <= after_none + 2.5,
+                "{kind:?} ×{scale}: after stable {after:.2} %, {after_none:.2} % with no prior"
+            );
         }
     }
 }

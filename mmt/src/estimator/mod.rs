@@ -297,6 +297,9 @@ pub struct Estimator {
     slide: slide_fit::SlideFit,
     /// Contacts of this model so far (the sliding first fit serves only the first).
     model_episodes: u32,
+    /// The sliding first fit published a whole set of this model (the reduced set then no
+    /// longer replaces it).
+    whole_published: bool,
 }
 
 impl Estimator {
@@ -351,6 +354,7 @@ impl Estimator {
             first: first::FirstFit::default(),
             slide: slide_fit::SlideFit::new(&config.slide_fit, config.axes, dt),
             model_episodes: 0,
+            whole_published: false,
             config,
         })
     }
@@ -480,6 +484,7 @@ impl Estimator {
         // `reset` only fails for an invalid p0, which `new` already validated.
         let _ = self.rls.reset(self.config.initial_covariance);
         self.model_episodes = 0;
+        self.whole_published = false;
 
         self.confidence.clear();
         self.reduced_confidence.clear();

@@ -9,89 +9,36 @@
 //! simulator's do). So the model can be simulated from the onset along the measured tool motion
 //! and its parameters fitted to the measured force directly (Levenberg–Marquardt in the logs of
 //! `m, b1, k2, b2` and `Fc`, forward-difference Jacobian, backward Euler, Coulomb friction with
-//! sticking). The simulation is the renderer's model, so what fits is what is rendered.
+//! sticking). The equations are the renderer's (which integrates them by SDIRK2, not backward
+//! Euler: the fit's numerical damping differs slightly on a stiff, light object).
 //!
 //! It runs one Levenberg–Marquardt iteration per tick (each simulates the window once per
-//! parameter plus twice: about 30–60 µs for 0.4 s of two axes), on a window frozen when the solve
+//! parameter plus once more: about 30 µs for 0.4 s of one axis, 60 µs for two), on a window
+//! frozen when the solve
 //! starts; a solve starts every [`SlideFitConfig::period_s`] from [`SlideFitConfig::min_window_s`]
 //! into the contact until the window reaches [`SlideFitConfig::max_window_s`] or the contact ends.
 //! A converged set is published when it explains the force ([`SlideFitConfig::max_residual`]),
 //! each parameter is pinned down by the data ([`SlideFitConfig::max_relative_error`], from the
 //! Jacobian's covariance) and it passes the physical and deflection gates; afterwards again when
-//! it has moved. It stops once the RLS confirms a set of the model.
+//! it has moved. Once it has published, the RLS's reduced (massless) set no longer replaces it.
+//! It stops once the RLS confirms a set of the model.
 //!
 //! Left out: a structure with a ground spring (its rest position is not known at the onset),
-//! and every later contact (the object may still be sliding when it begins).
+//! and every later contact (the object may still be sliding when it begins; under
+//! `ResetPolicy::EveryOnset` too, though each contact starts a model).
 
 use nalgebra::{SMatrix, SVector};
-use serde::{Deserialize, Serialize};
 
-use super::EstimatorError;
+mod config;
 use crate::model::backsolve::Params;
 use crate::model::gates::{GateConfig, GateRejection, Gated, check_deflection, gate_fitted};
 use crate::model::{Physical, Structure};
+pub use config::SlideFitConfig;
 
 /// Parameters fitted: `ln m, ln b1, ln k2, ln b2, ln Fc` (the last only with friction).
 const P: usize = 5;
 type Vector = SVector<f64, P>;
 type Matrix = SMatrix<f64, P, P>;
-
-/// Settings of the sliding first fit.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct SlideFitConfig {
-    /// Whether a sliding group publishes a first fit before its RLS set. Default true.
-    pub enabled: bool,
-    /// Contact time before the first solve \[s\]. Default 0.1.
-    pub min_window_s: f64,
-    /// Longest window fitted \[s\]: the memory held and the cost of an iteration. Default 0.4.
-    pub max_window_s: f64,
-    /// Time between solve starts \[s\]. Default 0.05.
-    pub period_s: f64,
-    /// Largest RMS misfit of the force, relative to its RMS. Default 0.15.
-    pub max_residual: f64,
-    /// Largest relative standard error of `m, b1, k2, b2`, and of `Fc` as a force relative to
-    /// the RMS force. Default 0.3.
-    pub max_relative_error: f64,
-    /// A published set is published again once a parameter has moved by a factor of `1 +`
-    /// this either way. Default 0.1.
-    pub republish_change: f64,
-}
-
-impl Default for SlideFitConfig {
-    fn default() -> Self {
-        SlideFitConfig {
-            enabled: true,
-            min_window_s: 0.1,
-            max_window_s: 0.4,
-            period_s: 0.05,
-            max_residual: 0.15,
-            max_relative_error: 0.3,
-            republish_change: 0.1,
-        }
-    }
-}
-
-impl SlideFitConfig {
-    pub(super) fn validate(&self) -> Result<(), EstimatorError> {
-        super::validate::positive(&[
-            ("slide_fit.min_window_s", self.min_window_s),
-            ("slide_fit.max_window_s", self.max_window_s),
-            ("slide_fit.period_s", self.period_s),
-            ("slide_fit.max_residual", self.max_residual),
-            ("slide_fit.max_relative_error", self.max_relative_error),
-            ("slide_fit.republish_change", self.republish_change),
-        ])?;
-        if self.max_window_s < self.min_window_s || self.max_window_s > 2.0 {
-            return Err(EstimatorError::Field {
-                field: "slide_fit.max_window_s",
-                value: self.max_window_s,
-                expected: "between slide_fit.min_window_s and 2 s",
-            });
-        }
-        Ok(())
-    }
-}
 
 /// One axis's raw sample: tool position \[m\], velocity \[m/s\], tared force on the tool \[N\].
 type Sample = [f64; 3];
@@ -166,9 +113,17 @@ struct Solve {
     iterations: u32,
     /// Samples per axis in the window.
     n: usize,
+    /// The last accepted step gained less than [`CONVERGED_GAIN`] of the cost or moved less than
+    /// [`CONVERGED_STEP`].
+    converged: bool,
 }
 
 const MAX_ITERATIONS: u32 = 40;
+/// An accepted step that lowers the cost by less than this fraction ends the solve, converged.
+const CONVERGED_GAIN: f64 = 1e-6;
+/// An accepted step that moves no parameter by more than this (in the log: a relative change)
+/// ends the solve, converged.
+const CONVERGED_STEP: f64 = 1e-6;
 const FD_STEP: f64 = 1e-4;
 
 /// The running fit of one group's first contact.
@@ -200,6 +155,9 @@ pub(super) enum Outcome {
     Publish(Gated),
     /// A converged set failed a gate.
     Rejected(GateRejection),
+    /// The solve ended without converging (its iterations, its damping, or a cost that is not
+    /// finite): nothing is gated.
+    NotConverged,
 }
 
 impl SlideFit {
@@ -288,6 +246,7 @@ impl SlideFit {
             lambda: 1e-2,
             iterations: 0,
             n,
+            converged: false,
         });
     }
 
@@ -372,14 +331,18 @@ impl SlideFit {
         };
         // At most a factor e² per parameter and iteration: a long step into a region where the
         // simulation sticks throughout has no gradient to come back by.
-        let theta = s.theta + step.map(|d| d.clamp(-2.0, 2.0));
+        let step = step.map(|d| d.clamp(-2.0, 2.0));
+        let theta = s.theta + step;
         let cost = self.cost(&theta, s.n, dt);
         if cost < s.cost {
             let gain = (s.cost - cost) / s.cost;
             s.theta = theta;
             s.cost = cost;
             s.lambda = (s.lambda / 3.0).max(1e-9);
-            if gain < 1e-6 {
+            // Converged: the cost no longer falls, or the parameters no longer move (an exact
+            // fit's cost falls geometrically to 0 and its relative gain never becomes small).
+            if gain < CONVERGED_GAIN || step.amax() < CONVERGED_STEP {
+                s.converged = true;
                 return Err(s);
             }
         } else {
@@ -388,7 +351,7 @@ impl SlideFit {
         Ok(s)
     }
 
-    /// Gates a converged solve: the set to publish, nothing (it has not moved since the last
+    /// Gates a finished solve: the set to publish, nothing (it has not moved since the last
     /// published), or the gate that failed.
     fn finish(
         &mut self,
@@ -397,24 +360,35 @@ impl SlideFit {
         gates: &GateConfig,
         dt: f64,
     ) -> Outcome {
-        self.linearise(&s.theta, s.n, dt);
+        if !s.converged {
+            self.last = None;
+            return Outcome::NotConverged;
+        }
+        // The buffers hold the last iteration's linearisation, one converged step before `theta`:
+        // its covariance serves (no second pass this tick).
         match self.gate(s, config, gates, dt) {
             Ok((gated, p)) => {
                 self.last = Some(s.theta);
                 let moved = self.published.is_none_or(|old| {
                     differs(&old, &p, config.republish_change.ln_1p(), self.friction)
                 });
-                if !moved {
-                    return Outcome::Working;
+                if moved {
+                    Outcome::Publish(gated)
+                } else {
+                    Outcome::Working
                 }
-                self.published = Some(p);
-                Outcome::Publish(gated)
             }
             Err(e) => {
                 self.last = None;
                 Outcome::Rejected(e)
             }
         }
+    }
+
+    /// Records `p` as sent to the operator (a set offered by [`Self::step`] may be held back when
+    /// the RLS published one that tick: it is then offered again by the next solve).
+    pub(super) fn mark_published(&mut self, p: Physical) {
+        self.published = Some(p);
     }
 
     fn gate(
@@ -438,7 +412,7 @@ impl SlideFit {
                 max: config.max_residual,
             });
         }
-        let count = self.residual.len() as f64;
+        let count = (self.axes * s.n) as f64;
         let f_rms = (ff / count).sqrt();
         let (a, _) = self.normal_equations();
         let sigma2 = s.cost / (count - self.fitted() as f64).max(1.0);
@@ -507,12 +481,16 @@ impl super::Estimator {
             .step(now_s, &axes[..n], &config, &self.config.gates, dt)
         {
             Outcome::Publish(g) if update.confirmed.is_none() => {
+                if let Some(p) = g.sliding_mass() {
+                    self.slide.mark_published(p);
+                }
+                self.whole_published = true;
                 self.stats.first_fits += 1;
                 let after = now_s - self.contact_since_s;
                 self.stats.first_fit_after_s.get_or_insert(after);
                 update.confirmed = Some(g);
             }
-            Outcome::Rejected(_) => self.stats.first_fit_rejections += 1,
+            Outcome::Rejected(_) | Outcome::NotConverged => self.stats.first_fit_rejections += 1,
             Outcome::Publish(_) | Outcome::Working => {}
         }
     }
@@ -524,10 +502,16 @@ impl super::Estimator {
             Structure::SlidingMass {
                 ground_spring: false,
                 friction,
-            } => (
-                self.config.slide_fit.enabled && self.model_episodes == 0,
-                friction,
-            ),
+            } => {
+                // Under `EveryOnset` each contact starts a model, but only the session's first
+                // finds the object at rest.
+                let at_rest =
+                    self.config.reset != super::ResetPolicy::EveryOnset || self.model_id <= 1;
+                (
+                    self.config.slide_fit.enabled && self.model_episodes == 0 && at_rest,
+                    friction,
+                )
+            }
             _ => (false, false),
         }
     }

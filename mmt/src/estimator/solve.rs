@@ -85,8 +85,9 @@ impl Estimator {
         let Some(info) = information else { return };
         let sliding = matches!(self.structure, Structure::SlidingMass { .. });
         // Never in place of a whole set: after a reset (mostly the detector's false alarms on the
-        // same object) the last whole set renders better than the massless part of the new one.
-        let whole = self.latest.is_some_and(|g| !g.is_reduced());
+        // same object) the last whole set renders better than the massless part of the new one;
+        // nor in place of the sliding first fit's whole set of this model.
+        let whole = self.latest.is_some_and(|g| !g.is_reduced()) || self.whole_published;
         if !(self.config.reduced_model && sliding) || whole {
             return;
         }

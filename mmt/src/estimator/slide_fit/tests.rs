@@ -93,6 +93,17 @@ fn assert_recovers(p: &Physical, noise_n: f64, tol: f64) {
     ] {
         assert!(close(got, want, tol), "{name}: {got} vs {want} ({q:?})");
     }
+    // Friction, as a force against the RMS force (a small `Fc` is a small share of it).
+    if p.coulomb_n > 0.0 && noise_n == 0.0 {
+        let f_rms = (a.iter().map(|s| s[2] * s[2]).sum::<f64>() / a.len() as f64).sqrt();
+        let dfc = (q.coulomb_n - p.coulomb_n).abs() / f_rms;
+        assert!(
+            dfc <= tol,
+            "Fc: {} vs {} ({dfc:.1e} of the RMS force)",
+            q.coulomb_n,
+            p.coulomb_n
+        );
+    }
 }
 
 #[test]
@@ -141,7 +152,7 @@ fn a_force_no_object_makes_is_rejected() {
     for i in 0..a.len() {
         match fit.step(i as f64 * DT, &[a[i], b[i]], &config, &gates, DT) {
             Outcome::Publish(g) => panic!("published {g:?}"),
-            Outcome::Rejected(_) => rejected += 1,
+            Outcome::Rejected(_) | Outcome::NotConverged => rejected += 1,
             Outcome::Working => {}
         }
     }
