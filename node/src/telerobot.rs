@@ -252,6 +252,7 @@ impl TelerobotNode {
         let frame = tracked.frame.or(self.last_frame);
         let Some(frame) = frame else { return };
         let in_contact = tracked.in_contact;
+        let mut new_object = false;
         if let Some(est) = &mut self.normal {
             let s = AxisSample {
                 position_m: tracked.normal_position_m.unwrap_or(0.0),
@@ -263,6 +264,7 @@ impl TelerobotNode {
             let loaded = s.force_n - est.tare_n()[0] > NORMAL_LOADED_N;
             let u = est.step(t, &[s], in_contact && loaded);
             self.updates[0] = Some(u);
+            new_object |= u.new_object;
             if let Some(g) = u.confirmed {
                 self.latest_normal = Some(g);
                 self.parameters_sent_ns = None;
@@ -286,12 +288,9 @@ impl TelerobotNode {
         if let Some(est) = &mut self.tangential {
             let u = est.step(t, &samples, in_contact);
             self.updates[1] = Some(u);
-            if u.new_object {
-                self.model_id = est.model_id();
-            }
+            new_object |= u.new_object;
             if let Some(g) = u.confirmed {
                 self.latest_tangential = Some(g);
-                self.model_id = est.model_id();
                 self.parameters_sent_ns = None;
             }
             let tare = [est.tare_n()[0], est.tare_n()[1]];
@@ -309,8 +308,18 @@ impl TelerobotNode {
                 }
             }
         }
-        if self.model_id == 0 && self.normal.as_ref().is_some_and(|e| e.model_id() > 0) {
+        // The node's model: the first from either group's first contact, then one more on each
+        // tick either group declares a new object (the normal's first fit on a re-touch as much
+        // as the tangents' detector).
+        let started = self
+            .normal
+            .iter()
+            .chain(&self.tangential)
+            .any(|e| e.model_id() > 0);
+        if self.model_id == 0 && started {
             self.model_id = 1;
+        } else if new_object && self.model_id > 0 {
+            self.model_id += 1;
         }
     }
 

@@ -497,3 +497,72 @@ fn each_axis_groups_set_reaches_its_own_renderers_only() {
     assert!((normal - 1_000.0 * depth).abs() < 0.05, "normal {normal} N");
     assert!((shear + 3_000.0 * 0.001).abs() < 0.05, "shear {shear} N");
 }
+
+/// A new object declared by the normal group alone reaches the operator as a new model: the
+/// `Parameters`' `model_id` is the node's, bumped by either group's new object (it followed the
+/// tangential group only, so a different object found by the normal's first fit on a re-touch
+/// kept the old id and the operator never started a new model).
+#[test]
+fn a_new_object_of_the_normal_group_alone_is_a_new_model() {
+    let settings = Scene::exp1().telerobot_settings();
+    let mut node = TelerobotNode::new(settings, [0.0, 0.0, 0.01]).unwrap();
+    node.set_cloud(mmt::testutil::plane_index(40, 0), 1);
+    let mut t = 0i64;
+    let tau = std::f64::consts::TAU;
+    // A press: in at 20 mm/s to 3 mm, then a 3 Hz, 1 mm wobble, on a contact of stiffness k.
+    // The last model id sent.
+    let press = |node: &mut TelerobotNode, t: &mut i64, k: f64, seconds: f64| {
+        let mut last_id = None;
+        let ticks = (seconds * 1000.0) as i64;
+        for i in 0..ticks {
+            *t += 1_000_000;
+            let s = i as f64 * 1e-3;
+            let (z, v) = if s < 0.2 {
+                (0.001 - 0.02 * s, -0.02)
+            } else {
+                let w = tau * 3.0 * (s - 0.2);
+                (-0.003 - 0.001 * w.sin(), -0.001 * tau * 3.0 * w.cos())
+            };
+            let f = (k * -z + 20.0 * -v).max(0.0);
+            let sample = node::RobotSample {
+                position_m: [0.0, 0.0, z],
+                velocity_m_per_s: [0.0, 0.0, v],
+                force_on_tool_n: [0.0, 0.0, f],
+            };
+            for d in node.step(*t, *t, &sample) {
+                if let protocol::telerobot_to_operator::Datagram::Parameters(p) = d {
+                    last_id = Some(p.model_id);
+                }
+            }
+        }
+        last_id
+    };
+    let lift = |node: &mut TelerobotNode, t: &mut i64| {
+        for _ in 0..300 {
+            *t += 1_000_000;
+            let sample = node::RobotSample {
+                position_m: [0.0, 0.0, 0.005],
+                velocity_m_per_s: [0.0; 3],
+                force_on_tool_n: [0.0; 3],
+            };
+            node.step(*t, *t, &sample);
+        }
+    };
+    lift(&mut node, &mut t);
+    assert_eq!(
+        press(&mut node, &mut t, 500.0, 4.0),
+        Some(1),
+        "the first object"
+    );
+    let normal = |node: &TelerobotNode| node.estimator_stats().0.unwrap();
+    assert!(normal(&node).confirmed > 0, "{:?}", normal(&node));
+    lift(&mut node, &mut t);
+    let id = press(&mut node, &mut t, 1500.0, 0.5);
+    assert_eq!(
+        normal(&node).first_fit_new_objects,
+        1,
+        "{:?}",
+        normal(&node)
+    );
+    assert_eq!(id, Some(2), "a new model for the operator");
+}
