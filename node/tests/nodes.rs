@@ -566,3 +566,28 @@ fn a_new_object_of_the_normal_group_alone_is_a_new_model() {
     );
     assert_eq!(id, Some(2), "a new model for the operator");
 }
+
+/// The operator maps a frame's capture time to its own clock from the peer's contact messages:
+/// no values of theirs (nor a frame's stamp) can overflow that mapping.
+#[test]
+fn extreme_peer_times_do_not_overflow_the_cloud_move() {
+    let settings = OperatorSettings::from_welcome(&Scene::exp1().summary()).unwrap();
+    assert!(settings.cloud_follows_object);
+    let mut op = OperatorNode::new(settings, OperatorConfig::default(), [0.0, 0.0, 0.01]).unwrap();
+    drop(op.set_cloud(mmt::testutil::plane_index(40, i64::MIN)));
+    for (k, sample_time) in [i64::MAX, i64::MIN].into_iter().enumerate() {
+        let contact = Contact {
+            header: header(k as u64 + 1, sample_time),
+            command_sample_time_ns: k as i64 + 1,
+            state: ContactState::Free,
+            proxy_position_m: [0.0; 3],
+            normal: None,
+            frame: None,
+            surface_point_m: None,
+            penetration_m: None,
+        };
+        op.on_message(&Message::Contact(contact), 0);
+        let out = op.step(1_000_000 * (k as i64 + 1), [0.0, 0.0, 0.005], [0.0; 3]);
+        assert!(out.force_n.iter().all(|f| f.is_finite()));
+    }
+}

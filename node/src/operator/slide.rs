@@ -204,8 +204,12 @@ impl OperatorNode {
             return None;
         }
         let remote = self.remote.filter(|r| r.command_sample_time_ns != 0)?;
-        let lag_ns = remote.header.sample_time_ns - remote.command_sample_time_ns;
-        Some(cloud.timestamp_ns() - lag_ns)
+        // Both times come from the peer: checked, so that no value of theirs can overflow.
+        let lag_ns = remote
+            .header
+            .sample_time_ns
+            .checked_sub(remote.command_sample_time_ns)?;
+        cloud.timestamp_ns().checked_sub(lag_ns)
     }
 
     /// The velocity of the object being rendered along `tangents` [m/s, world]: the prior's
