@@ -14,8 +14,9 @@
 //!
 //! It runs one Levenberg–Marquardt iteration per tick (each simulates the window once per
 //! parameter plus once more: 29.5 µs median for 0.4 s of one axis, measured; two axes about
-//! double it, not measured), on a window frozen when the solve starts; a solve starts every [`SlideFitConfig::period_s`] from [`SlideFitConfig::min_window_s`]
-//! into the contact until the window reaches [`SlideFitConfig::max_window_s`] or the contact ends.
+//! double it, not measured), on a window frozen when the solve starts; a solve starts every
+//! [`SlideFitConfig::period_s`] from [`SlideFitConfig::min_window_s`] into the contact until the
+//! window reaches [`SlideFitConfig::max_window_s`] or the contact ends.
 //! A converged set is published when it explains the force ([`SlideFitConfig::max_residual`]),
 //! each parameter is pinned down by the data ([`SlideFitConfig::max_relative_error`], from the
 //! Jacobian's covariance) and it passes the physical and deflection gates; afterwards again when
