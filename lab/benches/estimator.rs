@@ -199,8 +199,9 @@ fn back_solves(c: &mut Criterion) {
 }
 
 /// A tick of the first contact while the sliding first fit iterates (`mmt::estimator::
-/// SlideFitConfig`): one Levenberg–Marquardt iteration over the full 0.4 s window, six
-/// simulations of it plus the normal equations. Each tick is measured on a copy of the estimator
+/// SlideFitConfig`): one Levenberg–Marquardt iteration over the full 0.4 s window, seven
+/// simulations of it (one per term and the axis's onset force, one more) plus the normal
+/// equations. Each tick is measured on a copy of the estimator
 /// taken just after the full window's solve started (the copy is made outside the timing).
 fn slide_fit_tick(c: &mut Criterion) {
     let (free, contact) = estimate_samples();

@@ -138,7 +138,11 @@ fn prior_rows(out: &mut String, r: &ExperimentReport) {
         .estimators
         .iter()
         .map(|e| match (e.stats.first_fit_after_s, e.stats.first_fits) {
-            (Some(s), n) => format!("{} {s:.2} s ({n} sent)", e.axes),
+            (Some(s), n) => match (e.stats.contact_fits, e.stats.whole_fit_after_s) {
+                (0, _) => format!("{} {s:.2} s ({n} sent)", e.axes),
+                (_, Some(w)) => format!("{} {s:.2} s, every term {w:.2} s ({n} sent)", e.axes),
+                (_, None) => format!("{} {s:.2} s, every term — ({n} sent)", e.axes),
+            },
             (None, _) => format!("{} —", e.axes),
         })
         .collect();

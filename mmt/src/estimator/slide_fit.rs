@@ -1,27 +1,38 @@
 //! The first fit of a sliding object's tangents (issue 13 item 2): an output-error fit of the
-//! whole sliding-mass model on the raw samples of the model's first contact, published within
-//! a few tenths of a second of it, long before the RLS's set (about 1 s on exp 1).
+//! sliding-mass model on the raw samples of the model's first contact, published within a few
+//! hundredths of a second of it (its contact element) and a few tenths (every term), long
+//! before the RLS's set (about 1 s on exp 1).
 //!
 //! A sliding object is not a law that holds sample by sample (its mass and friction carry a
 //! state), and the RLS needs filtered derivatives whose onset transient it must wait out. But at
-//! the first contact of a model the object's state is known: it is at rest, and the contact
-//! element is unloaded (the rest length puts the force at 0, as the renderer's anchor and the
-//! simulator's do). So the model can be simulated from the onset along the measured tool motion
-//! and its parameters fitted to the measured force directly (Levenberg–Marquardt in the logs of
-//! `m, b1, k2, b2` and `Fc`, forward-difference Jacobian, backward Euler, Coulomb friction with
-//! sticking). The equations are the renderer's (which integrates them by SDIRK2, not backward
-//! Euler: the fit's numerical damping differs slightly on a stiff, light object).
+//! the first contact of a model the object's state is known: it is at rest. So the model can be
+//! simulated from the window's first sample along the measured tool motion and its parameters
+//! fitted to the measured force directly (Levenberg–Marquardt in the logs of `m, b1, k2, b2`
+//! and `Fc`, forward-difference Jacobian, backward Euler, Coulomb friction with sticking). The
+//! contact's force at that first sample is fitted too, per axis: the window opens on the
+//! telerobot's contact flag, which is not the touch to the tick ([`model`]). The tool velocity
+//! the model is simulated along is smoothed first ([`SlideFitConfig::velocity_smoothing_s`]):
+//! its noise is an error in the simulation's input. The equations are the renderer's (which
+//! integrates them by SDIRK2, not backward Euler: the fit's numerical damping differs slightly
+//! on a stiff, light object).
+//!
+//! Two stages:
+//! - from [`SlideFitConfig::contact_fit_s`] (20 ms) the contact element alone: `k2` and `b2` of
+//!   the massless model, `b1` and `Fc` held at the soft-object class's centre. The object has
+//!   barely moved yet, so the force is the contact element's. Its set is a reduced model
+//!   ([`Gated::is_reduced`]): the operator replays the episode when every term's set follows;
+//! - from [`SlideFitConfig::min_window_s`] (0.1 s) every term.
 //!
 //! It runs one Levenberg–Marquardt iteration per tick (each simulates the window once per
-//! parameter plus once more: 29.5 µs median for 0.4 s of one axis, measured; two axes about
-//! double it, not measured), on a window frozen when the solve starts; a solve starts every
-//! [`SlideFitConfig::period_s`] from [`SlideFitConfig::min_window_s`] into the contact until the
-//! window reaches [`SlideFitConfig::max_window_s`] or the contact ends.
+//! fitted parameter plus once more; see `cargo bench -p lab --bench estimator`), on a window
+//! frozen when the solve starts; a solve starts every [`SlideFitConfig::contact_period_s`] in
+//! the first stage and every [`SlideFitConfig::period_s`] in the second, until the window
+//! reaches [`SlideFitConfig::max_window_s`] or the contact ends.
 //! A converged set is published when it explains the force ([`SlideFitConfig::max_residual`]),
 //! each parameter is pinned down by the data ([`SlideFitConfig::max_relative_error`], from the
 //! Jacobian's covariance) and it passes the physical and deflection gates; afterwards again when
-//! it has moved. Once it has published, the RLS's reduced (massless) set no longer replaces it.
-//! It stops once the RLS confirms a set of the model.
+//! it has moved. Once a set of every term has published, the RLS's reduced (massless) set no
+//! longer replaces it. It stops once the RLS confirms a set of the model.
 //!
 //! Left out: a structure with a ground spring (its rest position is not known at the onset),
 //! and every later contact (the object may still be sliding when it begins; under
@@ -30,77 +41,29 @@
 use nalgebra::{SMatrix, SVector};
 
 mod config;
+mod model;
 use crate::model::backsolve::Params;
-use crate::model::gates::{GateConfig, GateRejection, Gated, check_deflection, gate_fitted};
+use crate::model::gates::{
+    GateConfig, GateRejection, Gated, check_deflection, gate_fitted, gate_fitted_massless,
+};
 use crate::model::{Physical, Structure};
 pub use config::SlideFitConfig;
+use model::{Model, smooth_velocity};
 
-/// Parameters fitted: `ln m, ln b1, ln k2, ln b2, ln Fc` (the last only with friction).
-const P: usize = 5;
+/// Parameters fitted: `ln m, ln b1, ln k2, ln b2, ln Fc` (the last only with friction), then
+/// each axis's contact force at the window's first sample \[N\] (a nuisance: see
+/// [`Model::residuals`]).
+const P: usize = 7;
+/// Index of the first axis's onset force in the parameters.
+const ONSET: usize = 5;
+/// Indices of `ln k2` and `ln b2`: the contact element, all a solve of it fits.
+const K2: usize = 2;
+const B2: usize = 3;
 type Vector = SVector<f64, P>;
 type Matrix = SMatrix<f64, P, P>;
 
 /// One axis's raw sample: tool position \[m\], velocity \[m/s\], tared force on the tool \[N\].
 type Sample = [f64; 3];
-
-/// The model simulated along a window, and its misfit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Model {
-    p: Physical,
-    dt: f64,
-}
-
-impl Model {
-    fn new(theta: &Vector, friction: bool, dt: f64) -> Model {
-        let e = |i: usize| theta[i].exp();
-        Model {
-            p: Physical {
-                mass_kg: e(0),
-                k_ground_n_per_m: 0.0,
-                b_ground_ns_per_m: e(1),
-                k_contact_n_per_m: e(2),
-                b_contact_ns_per_m: e(3),
-                coulomb_n: if friction { e(4) } else { 0.0 },
-            },
-            dt,
-        }
-    }
-
-    /// The force on the tool along one axis's samples, from an object at rest and an unloaded
-    /// contact at the first; each residual (measured − model) goes to `out`.
-    fn residuals(&self, axis: impl Iterator<Item = Sample>, out: &mut impl FnMut(f64)) {
-        let Physical {
-            mass_kg: m,
-            b_ground_ns_per_m: b1,
-            k_contact_n_per_m: k2,
-            b_contact_ns_per_m: b2,
-            coulomb_n: fc,
-            ..
-        } = self.p;
-        let dt = self.dt;
-        let (mut xm, mut vm) = (0.0_f64, 0.0_f64);
-        let mut rest = None;
-        for [x, v, f] in axis {
-            let l = *rest.get_or_insert(x + b2 * v / k2);
-            let drive = k2 * (x - l - xm) + b2 * v;
-            let stuck = vm == 0.0 && drive.abs() <= fc;
-            if !stuck {
-                let dir = if vm != 0.0 {
-                    vm.signum()
-                } else {
-                    drive.signum()
-                };
-                let fr = fc * dir;
-                // Backward Euler of m v̇ = k2 (x − L − xm) + b2 (ẋ − v) − b1 v − Fc sgn v.
-                let next = (m * vm / dt + drive - fr) / (m / dt + b1 + b2 + k2 * dt);
-                vm = if next * dir < 0.0 { 0.0 } else { next };
-                xm += vm * dt;
-            }
-            let model = -(k2 * (x - l - xm) + b2 * (v - vm));
-            out(f - model);
-        }
-    }
-}
 
 /// A Levenberg–Marquardt solve in progress.
 #[derive(Clone, Debug, PartialEq)]
@@ -129,10 +92,15 @@ const FD_STEP: f64 = 1e-4;
 pub(super) struct SlideFit {
     /// The first contact's samples, per axis (`[axis][tick]`); capacity reserved up front.
     samples: [Vec<Sample>; 2],
+    /// The window of the solve in progress: the samples with the tool's velocity smoothed
+    /// ([`smooth_velocity`]).
+    window: [Vec<Sample>; 2],
     axes: usize,
     /// Collecting this contact (the model's first, of a sliding structure without `k1`).
     active: bool,
     friction: bool,
+    /// The solve in progress (or the last) fits the contact element alone.
+    partial: bool,
     since_s: f64,
     next_start_s: f64,
     solve: Option<Solve>,
@@ -164,6 +132,7 @@ impl SlideFit {
         let cap = window_samples(config, dt);
         SlideFit {
             samples: [Vec::with_capacity(cap), Vec::with_capacity(cap)],
+            window: [Vec::with_capacity(cap), Vec::with_capacity(cap)],
             axes: axes.min(2),
             jacobian: Vec::with_capacity(2 * cap),
             residual: Vec::with_capacity(2 * cap),
@@ -174,11 +143,12 @@ impl SlideFit {
     /// A contact begins at `now_s`. `first`: it is the model's first, the object at rest, and
     /// the structure one this fit serves (`friction` when it has Coulomb friction).
     pub(super) fn restart(&mut self, now_s: f64, first: bool, friction: bool) {
-        for s in &mut self.samples {
+        for s in self.samples.iter_mut().chain(&mut self.window) {
             s.clear();
         }
         self.active = first;
         self.friction = friction;
+        self.partial = false;
         self.since_s = now_s;
         self.next_start_s = now_s;
         self.solve = None;
@@ -229,13 +199,28 @@ impl SlideFit {
     /// Starts a solve when one is due and the window has grown since the last.
     fn start(&mut self, now_s: f64, config: &SlideFitConfig, dt: f64) {
         let n = self.samples[0].len();
-        let due = now_s - self.since_s >= config.min_window_s - 0.5 * dt
-            && now_s >= self.next_start_s
-            && self.last_n() < n;
+        let elapsed = now_s - self.since_s + 0.5 * dt;
+        let partial = elapsed < config.min_window_s;
+        let first = if partial {
+            config.contact_fit_s
+        } else {
+            config.min_window_s
+        };
+        let due = elapsed >= first && now_s >= self.next_start_s && self.last_n() < n;
         if !due {
             return;
         }
-        self.next_start_s = now_s + config.period_s;
+        self.partial = partial;
+        self.next_start_s = now_s
+            + if partial {
+                config.contact_period_s
+            } else {
+                config.period_s
+            };
+        let half = (config.velocity_smoothing_s / dt).round() as usize;
+        for (raw, window) in self.samples.iter().zip(&mut self.window).take(self.axes) {
+            smooth_velocity(&raw[..n], half, window);
+        }
         let theta = self.last.unwrap_or_else(start_point);
         let cost = self.cost(&theta, n, dt);
         self.solve = Some(Solve {
@@ -248,25 +233,42 @@ impl SlideFit {
         });
     }
 
+    /// Whether the solve in progress, or the last, fits the contact element alone.
+    pub(super) fn partial(&self) -> bool {
+        self.partial
+    }
+
     /// Samples per axis the last finished solve used (0 before one).
     fn last_n(&self) -> usize {
         self.residual.len() / self.axes.max(1)
     }
 
     fn model(&self, theta: &Vector, dt: f64) -> Model {
-        Model::new(theta, self.friction, dt)
+        Model::new(theta, self.friction, self.partial, dt)
     }
 
+    /// The physical terms fitted: `m, b1, k2, b2`, and `Fc` with friction.
     fn fitted(&self) -> usize {
-        if self.friction { P } else { P - 1 }
+        if self.friction { ONSET } else { ONSET - 1 }
+    }
+
+    /// Whether parameter `j` is fitted: a physical term (only `k2` and `b2` in a solve of the
+    /// contact element), or an axis's onset force.
+    fn is_fitted(&self, j: usize) -> bool {
+        let physical = if self.partial {
+            j == K2 || j == B2
+        } else {
+            j < self.fitted()
+        };
+        physical || (ONSET..ONSET + self.axes).contains(&j)
     }
 
     /// The sum of squared residuals over the first `n` samples of each axis (∞ when not finite).
     fn cost(&self, theta: &Vector, n: usize, dt: f64) -> f64 {
         let model = self.model(theta, dt);
         let mut ssr = 0.0;
-        for window in self.samples.iter().take(self.axes) {
-            model.residuals(window[..n].iter().copied(), &mut |r| ssr += r * r);
+        for (a, window) in self.window.iter().take(self.axes).enumerate() {
+            model.residuals(a, window[..n].iter().copied(), &mut |r| ssr += r * r);
         }
         if ssr.is_finite() { ssr } else { f64::INFINITY }
     }
@@ -276,19 +278,26 @@ impl SlideFit {
         self.residual.clear();
         self.jacobian.clear();
         let model = self.model(theta, dt);
-        for window in self.samples.iter().take(self.axes) {
+        for (a, window) in self.window.iter().take(self.axes).enumerate() {
             let residual = &mut self.residual;
-            model.residuals(window[..n].iter().copied(), &mut |r| residual.push(r));
+            model.residuals(a, window[..n].iter().copied(), &mut |r| residual.push(r));
         }
         self.jacobian.resize(self.residual.len(), [0.0; P]);
-        for j in 0..self.fitted() {
+        for j in 0..P {
+            if !self.is_fitted(j) {
+                continue;
+            }
             let mut moved = *theta;
             moved[j] += FD_STEP;
             let model = self.model(&moved, dt);
-            let mut i = 0;
-            for window in self.samples.iter().take(self.axes) {
+            for (a, window) in self.window.iter().take(self.axes).enumerate() {
+                // An axis's onset force moves only that axis's residuals.
+                if j >= ONSET && j != ONSET + a {
+                    continue;
+                }
                 let (jacobian, base) = (&mut self.jacobian, &self.residual);
-                model.residuals(window[..n].iter().copied(), &mut |r| {
+                let mut i = a * n;
+                model.residuals(a, window[..n].iter().copied(), &mut |r| {
                     jacobian[i][j] = (r - base[i]) / FD_STEP;
                     i += 1;
                 });
@@ -304,7 +313,7 @@ impl SlideFit {
             a += row * row.transpose();
             g += row * *r;
         }
-        for j in self.fitted()..P {
+        for j in (0..P).filter(|&j| !self.is_fitted(j)) {
             a[(j, j)] = 1.0;
             g[j] = 0.0;
         }
@@ -327,9 +336,12 @@ impl SlideFit {
             s.lambda *= 4.0;
             return Ok(s);
         };
-        // At most a factor e² per parameter and iteration: a long step into a region where the
-        // simulation sticks throughout has no gradient to come back by.
-        let step = step.map(|d| d.clamp(-2.0, 2.0));
+        // At most a factor e² per physical term and iteration: a long step into a region where
+        // the simulation sticks throughout has no gradient to come back by.
+        let mut step = step;
+        for d in step.iter_mut().take(ONSET) {
+            *d = d.clamp(-2.0, 2.0);
+        }
         let theta = s.theta + step;
         let cost = self.cost(&theta, s.n, dt);
         if cost < s.cost {
@@ -397,7 +409,7 @@ impl SlideFit {
         dt: f64,
     ) -> Result<(Gated, Physical), GateRejection> {
         let ff: f64 = self
-            .samples
+            .window
             .iter()
             .take(self.axes)
             .flat_map(|w| w[..s.n].iter())
@@ -413,7 +425,8 @@ impl SlideFit {
         let count = (self.axes * s.n) as f64;
         let f_rms = (ff / count).sqrt();
         let (a, _) = self.normal_equations();
-        let sigma2 = s.cost / (count - self.fitted() as f64).max(1.0);
+        let fitted = (0..P).filter(|&j| self.is_fitted(j)).count();
+        let sigma2 = s.cost / (count - fitted as f64).max(1.0);
         let model = self.model(&s.theta, dt);
         let spread = |j: usize, cov: &Matrix| {
             let se = (sigma2 * cov[(j, j)]).max(0.0).sqrt();
@@ -431,7 +444,7 @@ impl SlideFit {
         for (j, name) in ["m", "b1", "k2", "b2", "Fc"]
             .into_iter()
             .enumerate()
-            .take(self.fitted())
+            .filter(|&(j, _)| self.is_fitted(j))
         {
             let spread = spread(j, &cov);
             if !(spread <= config.max_relative_error) {
@@ -446,7 +459,12 @@ impl SlideFit {
             ground_spring: false,
             friction: self.friction,
         };
-        let gated = gate_fitted(structure, &Params::SlidingMass(model.p), residual)?;
+        let params = Params::SlidingMass(model.p);
+        let gated = if self.partial {
+            gate_fitted_massless(structure, &params, residual)?
+        } else {
+            gate_fitted(structure, &params, residual)?
+        };
         Ok((check_deflection(gated, f_rms, gates)?, model.p))
     }
 }
@@ -482,10 +500,16 @@ impl super::Estimator {
                 if let Some(p) = g.sliding_mass() {
                     self.slide.mark_published(p);
                 }
-                self.whole_published = true;
+                // A reduced set leaves the RLS's own reduced sets free to replace it.
+                self.whole_published |= !g.is_reduced();
                 self.stats.first_fits += 1;
                 let after = now_s - self.contact_since_s;
                 self.stats.first_fit_after_s.get_or_insert(after);
+                if self.slide.partial() {
+                    self.stats.contact_fits += 1;
+                } else {
+                    self.stats.whole_fit_after_s.get_or_insert(after);
+                }
                 update.confirmed = Some(g);
             }
             Outcome::Rejected(_) | Outcome::NotConverged => self.stats.first_fit_rejections += 1,
@@ -530,6 +554,8 @@ fn start_point() -> Vector {
         c.k_contact_n_per_m.ln(),
         c.b_contact_ns_per_m.ln(),
         c.coulomb_n.max(0.01).ln(),
+        0.0,
+        0.0,
     ])
 }
 

@@ -71,6 +71,14 @@ pub struct EstimatorStats {
     /// Contact time [s] from the onset to the run's first published first fit.
     #[serde(default)]
     pub first_fit_after_s: Option<f64>,
+    /// Sliding first fits of the contact element alone, published as reduced sets (`k2`, `b2`
+    /// of the massless model, `b1` and `Fc` at the class centre:
+    /// [`super::SlideFitConfig::contact_fit_s`]); also in `first_fits`.
+    #[serde(default)]
+    pub contact_fits: u64,
+    /// Contact time [s] from the onset to the run's first sliding first fit of every term.
+    #[serde(default)]
+    pub whole_fit_after_s: Option<f64>,
 }
 
 /// Back-solves rejected, per gate ([`GateRejection`]'s variants).

@@ -427,6 +427,24 @@ pub fn gate_fitted(
     Ok(gated)
 }
 
+/// [`gate_fitted`] for a massless sliding set fitted directly (the sliding first fit of the
+/// contact element): a reduced model like [`gate_massless`]'s, which [`Gated::is_reduced`]
+/// says it is. A set with a mass is refused.
+pub fn gate_fitted_massless(
+    structure: Structure,
+    params: &Params,
+    residual: f64,
+) -> Result<Gated, GateRejection> {
+    if !matches!(params, Params::SlidingMass(p) if p.mass_kg == 0.0) {
+        return Err(GateRejection::NotPassive {
+            condition: "a reduced set is massless",
+        });
+    }
+    let mut gated = gate_fitted(structure, params, residual)?;
+    gated.reduced = true;
+    Ok(gated)
+}
+
 /// Gates 1–3 on θ. `massless_ok` admits `e = 0` (a given first-order model).
 fn check_theta(
     structure: Structure,

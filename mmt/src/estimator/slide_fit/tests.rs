@@ -17,6 +17,20 @@ fn object(m: f64, b1: f64, k2: f64, b2: f64, fc: f64) -> Physical {
 /// 3 Hz and a 7 Hz wobble, and the model's own force for `p` (with `noise_n` of
 /// deterministic pseudo-noise on it).
 fn samples(p: &Physical, speed: f64, phase: f64, noise_n: f64, seconds: f64) -> Vec<Sample> {
+    loaded_samples(p, false, 0.0, speed, phase, noise_n, seconds)
+}
+
+/// [`samples`] of the object `p` (`massless`: with its mass left out) whose contact already
+/// carries `onset_n` on the object at the first sample.
+fn loaded_samples(
+    p: &Physical,
+    massless: bool,
+    onset_n: f64,
+    speed: f64,
+    phase: f64,
+    noise_n: f64,
+    seconds: f64,
+) -> Vec<Sample> {
     let n = (seconds / DT).round() as usize;
     let tau = std::f64::consts::TAU;
     let tool: Vec<(f64, f64)> = (0..n)
@@ -34,11 +48,13 @@ fn samples(p: &Physical, speed: f64, phase: f64, noise_n: f64, seconds: f64) -> 
         p.k_contact_n_per_m.ln(),
         p.b_contact_ns_per_m.ln(),
         p.coulomb_n.max(1e-9).ln(),
+        onset_n,
+        0.0,
     ]);
-    let model = Model::new(&theta, p.coulomb_n > 0.0, DT);
+    let model = Model::new(&theta, p.coulomb_n > 0.0, massless, DT);
     let mut forces = Vec::with_capacity(n);
     // With a measured force of 0 each residual is minus the model's force.
-    model.residuals(tool.iter().map(|&(x, v)| [x, v, 0.0]), &mut |r| {
+    model.residuals(0, tool.iter().map(|&(x, v)| [x, v, 0.0]), &mut |r| {
         forces.push(-r)
     });
     let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
@@ -66,6 +82,15 @@ fn run(axes: [&[Sample]; 2], friction: bool, config: &SlideFitConfig) -> Vec<Gat
     out
 }
 
+/// The defaults with the velocity as given: the model's own data is fitted exactly (the
+/// smoothing is 0.45 % off at the test motion's 7 Hz: `m` 2.7 % off on exp 1's object).
+fn exact() -> SlideFitConfig {
+    SlideFitConfig {
+        velocity_smoothing_s: 0.0,
+        ..SlideFitConfig::default()
+    }
+}
+
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a / b - 1.0).abs() <= tol
 }
@@ -78,7 +103,7 @@ fn assert_recovers(p: &Physical, noise_n: f64, tol: f64) {
     // Every converged solve is published: the last is the whole window's.
     let config = SlideFitConfig {
         republish_change: 1e-9,
-        ..SlideFitConfig::default()
+        ..exact()
     };
     let published = run([&a, &b], p.coulomb_n > 0.0, &config);
     let last = published.last().and_then(Gated::sliding_mass);
@@ -200,4 +225,174 @@ fn a_bad_configuration_is_refused_naming_the_field() {
             .to_string()
             .contains("slide_fit.period_s")
     );
+}
+
+/// The first 20 ms: the contact element alone, with the mass's terms at the class centre and
+/// the mass left out, published as a reduced set; the whole fit follows from 0.1 s.
+#[test]
+fn the_contact_element_is_fitted_first_as_a_reduced_set() {
+    let c = crate::model::prior::SOFT_OBJECTS.centre();
+    // The model the stage fits: massless, `b1` and `Fc` the class centre's, its own `k2`, `b2`.
+    let p = object(0.0, c.b_ground_ns_per_m, 700.0, 30.0, c.coulomb_n);
+    let make = |speed, phase| loaded_samples(&p, true, 0.0, speed, phase, 0.0, 0.5);
+    let (a, b) = (make(0.03, 0.0), make(-0.02, 1.0));
+    let config = exact();
+    let mut fit = SlideFit::new(&config, 2, DT);
+    fit.restart(0.0, true, true);
+    let gates = GateConfig::default();
+    let mut first = None;
+    for i in 0..100 {
+        if let Outcome::Publish(g) = fit.step(i as f64 * DT, &[a[i], b[i]], &config, &gates, DT) {
+            first = Some((i, g));
+            break;
+        }
+    }
+    let Some((tick, g)) = first else {
+        panic!("no reduced set within 0.1 s")
+    };
+    assert!(tick <= 40, "published at tick {tick}");
+    assert!(g.is_reduced(), "{g:?}");
+    let q = g.sliding_mass().unwrap();
+    assert_eq!(q.mass_kg, 0.0);
+    assert!(close(q.k_contact_n_per_m, 700.0, 1e-3), "{q:?}");
+    assert!(close(q.b_contact_ns_per_m, 30.0, 1e-3), "{q:?}");
+    assert!(
+        close(q.b_ground_ns_per_m, c.b_ground_ns_per_m, 1e-12),
+        "{q:?}"
+    );
+    // Left out (`contact_fit_s` ≥ `min_window_s`): nothing before 0.1 s, and no reduced set.
+    let whole_only = SlideFitConfig {
+        contact_fit_s: 0.1,
+        ..config
+    };
+    let q = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let (a, b) = (
+        samples(&q, 0.03, 0.0, 0.0, 0.5),
+        samples(&q, -0.02, 1.0, 0.0, 0.5),
+    );
+    let mut fit = SlideFit::new(&whole_only, 2, DT);
+    fit.restart(0.0, true, true);
+    for i in 0..a.len() {
+        if let Outcome::Publish(g) = fit.step(i as f64 * DT, &[a[i], b[i]], &whole_only, &gates, DT)
+        {
+            assert!(i >= 100 && !g.is_reduced(), "tick {i}: {g:?}");
+        }
+    }
+}
+
+/// A contact that already carries a force when the window opens (the contact flag set a tick
+/// or more after the touch) is fitted exactly: the onset force is a parameter.
+#[test]
+fn a_contact_loaded_at_the_windows_start_is_fitted_exactly() {
+    let p = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let a = loaded_samples(&p, false, 0.4, 0.03, 0.0, 0.0, 0.5);
+    let b = samples(&p, -0.02, 1.0, 0.0, 0.5);
+    let config = SlideFitConfig {
+        republish_change: 1e-9,
+        ..exact()
+    };
+    let published = run([&a, &b], true, &config);
+    let q = published.last().and_then(Gated::sliding_mass).unwrap();
+    for (name, got, want) in [
+        ("m", q.mass_kg, 1.0),
+        ("b1", q.b_ground_ns_per_m, 60.0),
+        ("k2", q.k_contact_n_per_m, 500.0),
+        ("b2", q.b_contact_ns_per_m, 60.0),
+    ] {
+        assert!(close(got, want, 1e-3), "{name}: {got} vs {want} ({q:?})");
+    }
+}
+
+/// White noise on the measured tool velocity (the Franka-like 1 mm/s) is an error in the
+/// simulation's input: unsmoothed, the fit lowered `b2` and moved `m` and `k2` to make up.
+#[test]
+fn velocity_noise_does_not_bias_the_fit() {
+    let p = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    let mut gaussian = || {
+        // The sum of 12 uniforms: unit variance, near-normal.
+        (0..12)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .sum::<f64>()
+            - 6.0
+    };
+    let mut noisy = |mut v: Vec<Sample>| {
+        for s in &mut v {
+            s[1] += 1e-3 * gaussian();
+        }
+        v
+    };
+    let a = noisy(samples(&p, 0.03, 0.0, 0.0, 0.5));
+    let b = noisy(samples(&p, -0.02, 1.0, 0.0, 0.5));
+    let config = SlideFitConfig {
+        republish_change: 1e-9,
+        ..SlideFitConfig::default()
+    };
+    let published = run([&a, &b], true, &config);
+    let q = published.last().and_then(Gated::sliding_mass).unwrap();
+    for (name, got, want) in [
+        ("m", q.mass_kg, 1.0),
+        ("k2", q.k_contact_n_per_m, 500.0),
+        ("b2", q.b_contact_ns_per_m, 60.0),
+    ] {
+        assert!(close(got, want, 0.02), "{name}: {got} vs {want} ({q:?})");
+    }
+}
+
+/// The smoothing keeps a quadratic exactly, at the ends too (symmetric windows), and cuts
+/// white noise by the filter's noise gain.
+#[test]
+fn the_velocity_smoothing_keeps_a_quadratic_and_cuts_noise() {
+    let raw: Vec<Sample> = (0..200)
+        .map(|i| {
+            let t = i as f64 * DT;
+            [t, 0.1 + 2.0 * t - 30.0 * t * t, 1.0]
+        })
+        .collect();
+    let mut out = Vec::new();
+    smooth_velocity(&raw, 20, &mut out);
+    for (r, o) in raw.iter().zip(&out) {
+        assert!((r[1] - o[1]).abs() < 1e-12, "{r:?} → {o:?}");
+        assert_eq!((r[0], r[2]), (o[0], o[2]));
+    }
+    // An alternating ±1 (the fastest noise) in the middle: the quadratic fit of 41 samples.
+    let alternating: Vec<Sample> = (0..200)
+        .map(|i| [0.0, if i % 2 == 0 { 1.0 } else { -1.0 }, 0.0])
+        .collect();
+    smooth_velocity(&alternating, 20, &mut out);
+    assert!(out[100][1].abs() < 0.1, "{}", out[100][1]);
+}
+
+/// A one-axis group: the second axis's buffers stay empty and are never read (smoothing them
+/// sliced an empty window and panicked). Fitted exactly without the contact element's stage;
+/// with it, this one-axis motion's first solve of every term (started a few ticks later,
+/// behind the last solve of the contact element) did not converge in its 40 iterations, and
+/// the later solves, each started where the last converged, stalled at `m` 1.12 for 1 kg: the
+/// friction's sticking makes the cost non-smooth. Not seen with two axes.
+#[test]
+fn a_one_axis_group_is_fitted() {
+    let p = object(1.0, 60.0, 500.0, 60.0, 0.05);
+    let a = samples(&p, 0.03, 0.0, 0.0, 0.5);
+    let config = SlideFitConfig {
+        republish_change: 1e-9,
+        contact_fit_s: 0.1,
+        ..exact()
+    };
+    let mut fit = SlideFit::new(&config, 1, DT);
+    fit.restart(0.0, true, true);
+    let gates = GateConfig::default();
+    let mut last = None;
+    for (i, s) in a.iter().enumerate() {
+        if let Outcome::Publish(g) = fit.step(i as f64 * DT, &[*s], &config, &gates, DT) {
+            last = g.sliding_mass();
+        }
+    }
+    let q = last.expect("a set");
+    assert!(close(q.k_contact_n_per_m, 500.0, 1e-3), "{q:?}");
+    assert!(fit.window[1].is_empty());
 }
