@@ -227,7 +227,8 @@ fn a_noisy_lagging_re_touch_of_the_same_object_is_the_same_object() {
         "re-fitted {:.3} s after the onset",
         t_fit - 2.001
     );
-    assert!((kv.unwrap().k_n_per_m / K - 1.0).abs() < 0.05, "{kv:?}");
+    // The 1 ms lag biases the first 30 ms's set (`FirstFitConfig::min_window_s`).
+    assert!((kv.unwrap().k_n_per_m / K - 1.0).abs() < 0.1, "{kv:?}");
 }
 
 /// Issue 13 item 4, for a Kelvin–Voigt group: a different object at the same place (three
