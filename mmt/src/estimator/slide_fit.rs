@@ -307,12 +307,21 @@ impl SlideFit {
 
     /// `JᵀJ` and `Jᵀr` of the buffers; the parameters not fitted get an identity row.
     fn normal_equations(&self) -> (Matrix, Vector) {
-        let (mut a, mut g) = (Matrix::zeros(), Vector::zeros());
+        // The upper triangle, row by row, without temporaries (a 7 × 7 outer product per sample
+        // made this most of an iteration's cost).
+        let (mut upper, mut g) = ([[0.0; P]; P], Vector::zeros());
         for (row, r) in self.jacobian.iter().zip(&self.residual) {
-            let row = Vector::from_column_slice(row);
-            a += row * row.transpose();
-            g += row * *r;
+            for (i, &ri) in row.iter().enumerate() {
+                if ri == 0.0 {
+                    continue;
+                }
+                g[i] += ri * r;
+                for (u, &rj) in upper[i][i..].iter_mut().zip(&row[i..]) {
+                    *u += ri * rj;
+                }
+            }
         }
+        let mut a = Matrix::from_fn(|i, j| upper[i.min(j)][i.max(j)]);
         for j in (0..P).filter(|&j| !self.is_fitted(j)) {
             a[(j, j)] = 1.0;
             g[j] = 0.0;
