@@ -205,7 +205,7 @@ fn back_solves(c: &mut Criterion) {
 /// taken just after the full window's solve started (the copy is made outside the timing).
 fn slide_fit_tick(c: &mut Criterion) {
     let (free, contact) = estimate_samples();
-    let mut config = full_estimator(0.01).config().clone();
+    let mut config = *full_estimator(0.01).config();
     // Without the contact element's stage, whose solves shift the start of the full window's.
     config.slide_fit.contact_fit_s = config.slide_fit.min_window_s;
     let mut est = Estimator::new(config).unwrap();
