@@ -73,11 +73,13 @@ fn delay_is_reproduced(delay_ms: f64) {
     assert_eq!(r.safety.stale_params.episodes, 0, "{:?}", r.safety);
     // quinn put every datagram it was handed on the wire, both ways, but for the few handed
     // over as the connection closed, and its controller never saw congestion: nothing was held
-    // back inside quinn (the delay is the shim's alone).
+    // back inside quinn (the delay is the shim's alone). "A few" is the last tens of
+    // milliseconds of sending at about 1 kHz: a loaded 2-core run left 14 and 16 (its send
+    // task stalled up to 29 ms), where a hold-back inside quinn would leave thousands.
     for (side, l) in [("operator", &r.link), ("telerobot", &summary.link)] {
         let untransmitted = l.sent - l.quinn_datagrams_transmitted.min(l.sent);
         assert!(
-            untransmitted <= 10,
+            untransmitted <= 50,
             "{side}: {untransmitted} not on the wire: {l:?}"
         );
         assert_eq!(l.quinn_congestion_events, 0, "{side}: {l:?}");
