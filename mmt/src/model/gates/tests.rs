@@ -328,3 +328,37 @@ fn a_contact_spring_too_soft_for_the_measured_force_is_refused() {
         assert!(check_deflection(soft, f, &config).is_ok(), "{f}");
     }
 }
+
+/// The sliding first fit's contact element: a massless set fitted directly passes as a reduced
+/// set, with its residual kept; a set with a mass, or a negative term, is refused.
+#[test]
+fn a_massless_fitted_set_is_a_reduced_set_and_a_massive_one_is_refused() {
+    let structure = Structure::SlidingMass {
+        ground_spring: false,
+        friction: true,
+    };
+    let massless = Physical {
+        mass_kg: 0.0,
+        k_ground_n_per_m: 0.0,
+        ..typical()
+    };
+    let g = gate_fitted_massless(structure, &Params::SlidingMass(massless), 0.04).unwrap();
+    assert!(g.is_reduced());
+    assert_eq!(g.residual(), 0.04);
+    assert_eq!(g.sliding_mass().map(|p| p.mass_kg), Some(0.0));
+    // The same terms fitted as a whole set are not reduced.
+    let whole = gate_fitted(structure, &Params::SlidingMass(typical()), 0.04).unwrap();
+    assert!(!whole.is_reduced());
+    assert!(matches!(
+        gate_fitted_massless(structure, &Params::SlidingMass(typical()), 0.04),
+        Err(GateRejection::NotPassive { .. })
+    ));
+    let negative = Physical {
+        b_contact_ns_per_m: -1.0,
+        ..massless
+    };
+    assert!(matches!(
+        gate_fitted_massless(structure, &Params::SlidingMass(negative), 0.04),
+        Err(GateRejection::NotPhysical { name: "b2", .. })
+    ));
+}
