@@ -83,7 +83,7 @@ fn run(axes: [&[Sample]; 2], friction: bool, config: &SlideFitConfig) -> Vec<Gat
 }
 
 /// The defaults with the velocity as given: the model's own data is fitted exactly (the
-/// smoothing is 0.45 % off at the test motion's 7 Hz: `m` 2.7 % off on exp 1's object).
+/// smoothing is 0.23 % off at the test motion's 7 Hz: `m` 2.7 % off on exp 1's object).
 fn exact() -> SlideFitConfig {
     SlideFitConfig {
         velocity_smoothing_s: 0.0,
