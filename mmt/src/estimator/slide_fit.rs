@@ -93,7 +93,7 @@ pub(super) struct SlideFit {
     /// The first contact's samples, per axis (`[axis][tick]`); capacity reserved up front.
     samples: [Vec<Sample>; 2],
     /// The window of the solve in progress: the samples with the tool's velocity smoothed
-    /// ([`smooth_velocity`]).
+    /// ([`smooth_velocity`], extended at each solve's start).
     window: [Vec<Sample>; 2],
     axes: usize,
     /// Collecting this contact (the model's first, of a sliding structure without `k1`).
@@ -231,11 +231,6 @@ impl SlideFit {
             n,
             converged: false,
         });
-    }
-
-    /// Whether the solve in progress, or the last, fits the contact element alone.
-    pub(super) fn partial(&self) -> bool {
-        self.partial
     }
 
     /// Samples per axis the last finished solve used (0 before one).
@@ -514,7 +509,7 @@ impl super::Estimator {
                 self.stats.first_fits += 1;
                 let after = now_s - self.contact_since_s;
                 self.stats.first_fit_after_s.get_or_insert(after);
-                if self.slide.partial() {
+                if g.is_reduced() {
                     self.stats.contact_fits += 1;
                 } else {
                     self.stats.whole_fit_after_s.get_or_insert(after);

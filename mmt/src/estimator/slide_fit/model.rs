@@ -84,6 +84,9 @@ impl Model {
 
 /// `raw` into `out` with each velocity replaced by a quadratic Savitzky–Golay smoothing over
 /// `half` samples either side (fewer near the ends, symmetric; the first and last are kept).
+/// `out` may hold this smoothing of a prefix of `raw` (the window of the last solve, with the
+/// same `half`): the samples more than `half` before its end keep their windows and are not
+/// computed again, so a growing window costs its new samples only.
 ///
 /// The fit simulates the model along the measured tool motion, so the velocity's noise is an
 /// error in its input, which a least-squares fit pays for by lowering `b2` (the noise's share
@@ -92,9 +95,10 @@ impl Model {
 /// starts, so the smoothing can look ahead: over ±20 ms it cuts white noise to 0.23 of it,
 /// keeps a quadratic exactly, and is 0.06 % off at 5 Hz, 0.9 % at 10 Hz, 12 % at 20 Hz.
 pub(super) fn smooth_velocity(raw: &[Sample], half: usize, out: &mut Vec<Sample>) {
-    out.clear();
     let n = raw.len();
-    for i in 0..n {
+    let from = out.len().min(n).saturating_sub(half);
+    out.truncate(from);
+    for i in from..n {
         let h = half.min(i).min(n - 1 - i);
         let hf = h as f64;
         let a = 3.0 * (3.0 * hf * hf + 3.0 * hf - 1.0);

@@ -360,6 +360,17 @@ fn the_velocity_smoothing_keeps_a_quadratic_and_cuts_noise() {
         assert!((r[1] - o[1]).abs() < 1e-12, "{r:?} → {o:?}");
         assert_eq!((r[0], r[2]), (o[0], o[2]));
     }
+    // Extending a smoothed prefix gives exactly the smoothing of the whole.
+    let noisy: Vec<Sample> = (0..300)
+        .map(|i| [0.0, ((i * 7919) % 101) as f64 - 50.0, 0.0])
+        .collect();
+    let mut grown = Vec::new();
+    smooth_velocity(&noisy[..150], 20, &mut grown);
+    smooth_velocity(&noisy[..160], 20, &mut grown);
+    smooth_velocity(&noisy, 20, &mut grown);
+    let mut whole = Vec::new();
+    smooth_velocity(&noisy, 20, &mut whole);
+    assert_eq!(grown, whole);
     // An alternating ±1 (the fastest noise) in the middle: the quadratic fit of 41 samples.
     let alternating: Vec<Sample> = (0..200)
         .map(|i| [0.0, if i % 2 == 0 { 1.0 } else { -1.0 }, 0.0])
